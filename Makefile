@@ -1,0 +1,39 @@
+# kinesplat — top-level entry points. `make demo` and `make test` work on a fresh Debian 12 machine.
+BUILD_DIR ?= build
+JOBS ?= $(shell nproc 2>/dev/null || echo 2)
+CMAKE_FLAGS ?=
+DEMO_DIR ?= demo-out
+
+DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libopencv-dev \
+  nlohmann-json3-dev libcli11-dev libgtest-dev libbenchmark-dev zlib1g-dev ffmpeg
+
+.PHONY: deps build test demo bench format clean
+
+deps:
+	@missing=""; for p in $(DEB_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "kinesplat: installing missing Debian packages:$$missing"; \
+	  SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
+	else echo "kinesplat: all Debian packages present"; fi
+
+build:
+	cmake -S . -B $(BUILD_DIR) -G Ninja -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)
+	cmake --build $(BUILD_DIR) -j $(JOBS)
+
+test: deps build
+	cd $(BUILD_DIR) && ctest -j $(JOBS) --output-on-failure
+
+demo: deps build
+	./scripts/demo.sh $(BUILD_DIR)/kinesplat $(DEMO_DIR)
+
+bench: deps build
+	./scripts/bench.sh $(BUILD_DIR)
+
+format:
+	find src tests bench -name '*.cpp' -o -name '*.hpp' | xargs clang-format -i
+
+clean:
+	rm -rf $(BUILD_DIR)

@@ -1,0 +1,50 @@
+// kinesplat — one photo in, an animatable Gaussian-splat avatar out.
+#include <algorithm>
+#include <cstdio>
+#include <exception>
+#include <utility>
+#include <vector>
+
+#include "cli/registry.hpp"
+#include "core/error.hpp"
+
+namespace ks::cli {
+
+namespace {
+std::vector<std::pair<int, Register>>& groups() {
+  static std::vector<std::pair<int, Register>> g;
+  return g;
+}
+}  // namespace
+
+CommandGroup::CommandGroup(int order, Register reg) {
+  groups().emplace_back(order, std::move(reg));
+}
+
+void register_all(CLI::App& app) {
+  auto& g = groups();
+  std::stable_sort(g.begin(), g.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (auto& [order, reg] : g) reg(app);
+}
+
+}  // namespace ks::cli
+
+int main(int argc, char** argv) {
+  CLI::App app{"kinesplat: one photo of a person in, an animatable 3D Gaussian-splat avatar out."};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "kinesplat 0.1.0");
+  ks::cli::register_all(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const ks::Error& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

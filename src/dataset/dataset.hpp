@@ -1,0 +1,35 @@
+#pragma once
+// The dataset that generate, augment and reconstruct share (and that a user's own capture
+// provides): DIR/dataset.json + PNG images and masks. Format documented in docs/formats.md.
+#include <string>
+#include <vector>
+
+#include "body/body_model.hpp"
+#include "core/camera.hpp"
+#include "core/image.hpp"
+
+namespace ks {
+
+struct DatasetFrame {
+  std::string image;  // path relative to the dataset directory
+  std::string mask;   // path relative to the dataset directory (may be empty: no mask)
+  BodyParams pose;    // global_orient, body_pose, transl (betas live in the dataset)
+  Camera camera;
+};
+
+struct Dataset {
+  std::string body_model = "default";  // "default" or a path to a model .npz
+  Eigen::VectorXd betas;
+  float background[3] = {1.f, 1.f, 1.f};
+  std::vector<DatasetFrame> frames;
+
+  // Reads DIR/dataset.json; checks every frame (files exist, pose lengths, cameras).
+  // Throws ks::Error naming the frame and the problem.
+  static Dataset load(const std::string& dir);
+  // Writes DIR/dataset.json (atomically). Images are written by the caller.
+  void save(const std::string& dir) const;
+  Image load_image(const std::string& dir, size_t i) const;  // RGB
+  Image load_mask(const std::string& dir, size_t i) const;   // 1 channel; all ones if no mask
+};
+
+}  // namespace ks

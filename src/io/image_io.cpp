@@ -1,0 +1,67 @@
+#include "io/image_io.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/error.hpp"
+#include "core/fileio.hpp"
+
+namespace ks {
+
+Image read_image(const std::string& path, int channels) {
+  if (!std::filesystem::exists(path)) throw Error("cannot open image " + path + ": no such file");
+  cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
+  if (m.empty()) throw Error("cannot read image " + path + ": not a readable image file");
+  int c = m.channels();
+  if (c == 3) cv::cvtColor(m, m, cv::COLOR_BGR2RGB);
+  if (c == 4) cv::cvtColor(m, m, cv::COLOR_BGRA2RGBA);
+  double scale = 1.0;
+  switch (m.depth()) {
+    case CV_8U:
+      scale = 1.0 / 255.0;
+      break;
+    case CV_16U:
+      scale = 1.0 / 65535.0;
+      break;
+    case CV_32F:
+      scale = 1.0;
+      break;
+    default:
+      throw Error("cannot read image " + path + ": unsupported pixel depth");
+  }
+  cv::Mat f;
+  m.convertTo(f, CV_MAKETYPE(CV_32F, c), scale);
+  if (channels == 1 && c != 1) {
+    cv::cvtColor(f, f, c == 3 ? cv::COLOR_RGB2GRAY : cv::COLOR_RGBA2GRAY);
+    c = 1;
+  } else if (channels == 3 && c == 1) {
+    cv::cvtColor(f, f, cv::COLOR_GRAY2RGB);
+    c = 3;
+  } else if (channels == 3 && c == 4) {
+    cv::cvtColor(f, f, cv::COLOR_RGBA2RGB);
+    c = 3;
+  }
+  Image img(f.cols, f.rows, c);
+  for (int y = 0; y < f.rows; ++y) std::copy_n(f.ptr<float>(y), size_t(f.cols) * c, img.row(y));
+  return img;
+}
+
+void write_png(const std::string& path, const Image& img, int bits) {
+  if (bits != 8 && bits != 16) throw Error("PNG bit depth must be 8 or 16");
+  if (img.channels != 1 && img.channels != 3 && img.channels != 4)
+    throw Error("PNG needs 1, 3 or 4 channels");
+  const int c = img.channels;
+  cv::Mat f(img.height, img.width, CV_MAKETYPE(CV_32F, c), const_cast<float*>(img.data.data()));
+  cv::Mat out;
+  const double scale = bits == 8 ? 255.0 : 65535.0;
+  f.convertTo(out, CV_MAKETYPE(bits == 8 ? CV_8U : CV_16U, c), scale);  // saturating
+  if (c == 3) cv::cvtColor(out, out, cv::COLOR_RGB2BGR);
+  if (c == 4) cv::cvtColor(out, out, cv::COLOR_RGBA2BGRA);
+  write_via_temp(path, [&](const std::string& tmp) {
+    if (!cv::imwrite(tmp, out)) throw Error("cannot write PNG " + path);
+  });
+}
+
+}  // namespace ks

@@ -1,0 +1,15 @@
+#pragma once
+// PNG (and any format OpenCV reads) to/from ks::Image. Channels are RGB(A) order, values in [0,1].
+#include <string>
+
+#include "core/image.hpp"
+
+namespace ks {
+
+// Reads an image; `channels` = 0 keeps the file's channels (1, 3 or 4), 1 gives grey, 3 gives RGB.
+// Throws ks::Error for a missing or unreadable file.
+Image read_image(const std::string& path, int channels = 0);
+// Writes a PNG with 8 or 16 bits per channel (1, 3 or 4 channels), atomically. Values clamped.
+void write_png(const std::string& path, const Image& img, int bits = 8);
+
+}  // namespace ks
