@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "avatar/pose.hpp"
+#include "core/error.hpp"
 #include "evaluate/metrics.hpp"
 #include "raster/rasterizer.hpp"
 
