@@ -59,6 +59,12 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   sub->add_option("--lr-mlp", args->opt.lr_mlp, "MLP learning rate")->capture_default_str();
   sub->add_option("--triplane-res", args->opt.triplane_res, "Triplane resolution")
       ->capture_default_str();
+  sub->add_option("--hidden", args->opt.hidden, "Hidden width of the decoder MLPs")
+      ->capture_default_str();
+  sub->add_option("--max-offset", args->opt.max_offset, "Largest offset from the template (m)")
+      ->capture_default_str();
+  sub->add_option("--log-every", args->opt.log_every, "Print the losses every N iterations")
+      ->capture_default_str();
   sub->add_option("--eval", args->eval_dataset,
                   "After training, evaluate on this dataset (e.g. the test split)");
   sub->add_option("--eval-out", args->eval_out, "Write the evaluation metrics JSON here");
