@@ -1,0 +1,645 @@
+#pragma once
+// The rasterizer core, templated on the scalar type (float for production, double for the
+// finite-difference tests) and on the buffer structs (which share member names).
+// Included only by rasterizer.cpp and raster_double.cpp.
+#include <omp.h>
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <type_traits>
+
+#include "core/camera.hpp"
+#include "core/error.hpp"
+#include "raster/rasterizer.hpp"
+#include "raster/sh.hpp"
+
+namespace ks::raster_detail {
+
+constexpr int kTS = kTileSize;
+constexpr int kTilePixels = kTS * kTS;
+constexpr int kBatch = 64;
+
+// exp for x <= 0 that vectorises (no libm call): Cody-Waite reduction + degree-6 polynomial,
+// relative error ~2e-7. The double path uses std::exp.
+inline float fexp(float x) {
+  x = std::max(x, -87.0f);
+  const float t = x * 1.4426950408889634f;
+  const float k = (t + 12582912.0f) - 12582912.0f;  // round to nearest
+  const float r = (x - k * 0.693145751953125f) - k * 1.428606765330187e-06f;
+  float p = 1.0f / 720.0f;
+  p = p * r + 1.0f / 120.0f;
+  p = p * r + 1.0f / 24.0f;
+  p = p * r + 1.0f / 6.0f;
+  p = p * r + 0.5f;
+  p = p * r + 1.0f;
+  p = p * r + 1.0f;
+  const int32_t bits = (int32_t(k) + 127) << 23;
+  float scale;
+  std::memcpy(&scale, &bits, sizeof scale);
+  return p * scale;
+}
+inline double fexp(double x) {
+  return std::exp(x);
+}
+
+template <class T>
+inline uint32_t depth_key(T z) {
+  const float f = float(z);
+  uint32_t u;
+  std::memcpy(&u, &f, sizeof u);
+  return u;  // z > 0: the float bits are monotone in z
+}
+
+// Stable LSD radix sort of (key, id) pairs by key, 8 bits a pass, skipping constant bytes.
+inline void radix_sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& ids,
+                       std::vector<uint32_t>& keys2, std::vector<uint32_t>& ids2) {
+  const size_t n = keys.size();
+  keys2.resize(n);
+  ids2.resize(n);
+  for (int shift = 0; shift < 32; shift += 8) {
+    uint32_t hist[256] = {0};
+    for (size_t i = 0; i < n; ++i) ++hist[(keys[i] >> shift) & 255u];
+    bool trivial = false;
+    for (int b = 0; b < 256; ++b)
+      if (hist[b] == n) trivial = true;
+    if (trivial) continue;
+    uint32_t sum = 0;
+    for (int b = 0; b < 256; ++b) {
+      const uint32_t c = hist[b];
+      hist[b] = sum;
+      sum += c;
+    }
+    for (size_t i = 0; i < n; ++i) {
+      const uint32_t d = hist[(keys[i] >> shift) & 255u]++;
+      keys2[d] = keys[i];
+      ids2[d] = ids[i];
+    }
+    keys.swap(keys2);
+    ids.swap(ids2);
+  }
+}
+
+template <class T>
+struct CamT {
+  Eigen::Matrix<T, 3, 3> R;
+  Eigen::Matrix<T, 3, 1> t, centre;
+  T fx, fy, cx, cy;
+  T lox, hix, loy, hiy;  // clamp range of x/z, y/z for the Jacobian
+  int W, H;
+  explicit CamT(const Camera& c) {
+    R = c.R.cast<T>();
+    t = c.t.cast<T>();
+    centre = c.centre().cast<T>();
+    fx = T(c.fx), fy = T(c.fy), cx = T(c.cx), cy = T(c.cy);
+    W = c.width, H = c.height;
+    // 3DGS clamps x/z to +-1.3 tan(fov_x / 2), i.e. 15% of the image width beyond each edge
+    // for a centred principal point. With an arbitrary (cx, cy) we clamp to the same margin
+    // beyond the actual image edges: u in [-0.15 W, 1.15 W], v in [-0.15 H, 1.15 H].
+    lox = (T(-0.15) * T(W) - cx) / fx;
+    hix = (T(1.15) * T(W) - cx) / fx;
+    loy = (T(-0.15) * T(H) - cy) / fy;
+    hiy = (T(1.15) * T(H) - cy) / fy;
+  }
+};
+
+template <class T>
+inline Eigen::Matrix<T, 3, 3> quat_to_rot(T w, T x, T y, T z) {
+  Eigen::Matrix<T, 3, 3> R;
+  R << 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),  //
+      2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),   //
+      2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y);
+  return R;
+}
+
+template <class G>
+void check_gaussians(const G& g) {
+  const size_t n = g.size();
+  const size_t K = size_t(g.coeffs());
+  if (g.sh_degree < 0 || g.sh_degree > 3)
+    throw Error("rasterizer: SH degree " + std::to_string(g.sh_degree) + " not in 0..3");
+  if (g.means.size() != 3 * n || g.log_scales.size() != 3 * n || g.quats.size() != 4 * n ||
+      g.sh.size() != n * K * 3)
+    throw Error("rasterizer: inconsistent Gaussian array sizes");
+}
+
+template <class Img>
+void shape_image(Img& img, int w, int h, int c) {
+  img.width = w;
+  img.height = h;
+  img.channels = c;
+  img.data.resize(size_t(w) * h * c);
+}
+
+// ---------------------------------------------------------------------------------------------
+template <class G, class Res>
+void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res& out) {
+  using T = typename std::decay_t<decltype(out.conics)>::value_type;
+  using M3 = Eigen::Matrix<T, 3, 3>;
+  using V3 = Eigen::Matrix<T, 3, 1>;
+  check_gaussians(g);
+  if (camera.width <= 0 || camera.height <= 0) throw Error("rasterizer: empty camera image");
+  const CamT<T> cam(camera);
+  const int W = cam.W, H = cam.H;
+  const size_t N = g.size();
+  const int deg = g.sh_degree;
+  const int K = g.coeffs();
+  const T lp = T(s.low_pass);
+  const T near = T(s.near_plane);
+
+  shape_image(out.color, W, H, 3);
+  shape_image(out.alpha, W, H, 1);
+  shape_image(out.depth, W, H, 1);
+  out.radii.resize(N);
+  out.means2d.resize(2 * N);
+  out.conics.resize(3 * N);
+  out.colors.resize(3 * N);
+  out.depths.resize(N);
+  out.cov3d.resize(6 * N);
+  out.sh_clamped.resize(3 * N);
+  out.opacities.resize(N);
+  out.rects.resize(4 * N);
+  out.final_T.resize(size_t(W) * H);
+  out.n_contrib.resize(size_t(W) * H);
+  const int tiles_x = (W + kTS - 1) / kTS, tiles_y = (H + kTS - 1) / kTS;
+  const int ntiles = tiles_x * tiles_y;
+  out.tile_ranges.resize(2 * size_t(ntiles));
+
+  // 1. Cull + project + colour, one parallel pass.
+#pragma omp parallel for schedule(static)
+  for (size_t i = 0; i < N; ++i) {
+    out.radii[i] = 0;
+    int* rect = &out.rects[4 * i];
+    rect[0] = 0, rect[1] = -1, rect[2] = 0, rect[3] = -1;
+    const V3 m(T(g.means[3 * i]), T(g.means[3 * i + 1]), T(g.means[3 * i + 2]));
+    const V3 p = cam.R * m + cam.t;
+    const T z = p.z();
+    if (!(z >= near)) continue;
+    const T o = T(1) / (T(1) + std::exp(-T(g.opacity_logits[i])));
+    if (!(o >= T(1.0 / 255.0))) continue;
+    const T* q = nullptr;
+    T qraw[4] = {T(g.quats[4 * i]), T(g.quats[4 * i + 1]), T(g.quats[4 * i + 2]),
+                 T(g.quats[4 * i + 3])};
+    q = qraw;
+    const T qn = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (!(qn > T(1e-12))) continue;
+    const M3 Rq = quat_to_rot(q[0] / qn, q[1] / qn, q[2] / qn, q[3] / qn);
+    M3 Mm;
+    for (int c = 0; c < 3; ++c) Mm.col(c) = Rq.col(c) * std::exp(T(g.log_scales[3 * i + c]));
+    const M3 S3 = Mm * Mm.transpose();
+    T* cv = &out.cov3d[6 * i];
+    cv[0] = S3(0, 0), cv[1] = S3(0, 1), cv[2] = S3(0, 2), cv[3] = S3(1, 1), cv[4] = S3(1, 2),
+    cv[5] = S3(2, 2);
+    const T ux = std::clamp(p.x() / z, cam.lox, cam.hix);
+    const T uy = std::clamp(p.y() / z, cam.loy, cam.hiy);
+    Eigen::Matrix<T, 2, 3> J;
+    J << cam.fx / z, 0, -cam.fx * ux / z, 0, cam.fy / z, -cam.fy * uy / z;
+    const Eigen::Matrix<T, 2, 3> Tm = J * cam.R;
+    const Eigen::Matrix<T, 2, 2> S2 = Tm * S3 * Tm.transpose();
+    const T A = S2(0, 0) + lp, B = S2(0, 1), C = S2(1, 1) + lp;
+    const T det = A * C - B * B;
+    if (!(det > 0)) continue;
+    const T u = cam.fx * p.x() / z + cam.cx, v = cam.fy * p.y() / z + cam.cy;
+    // Pixel bounding box of the region where alpha >= 1/255 can hold:
+    // o exp(-d^T Q d / 2) >= 1/255  <=>  d^T Q d <= 2 ln(255 o); half-widths sqrt(2 ln(255 o) A).
+    const T L = std::max(T(0), std::log(T(255) * o));
+    const T ex = std::sqrt(2 * L * A) + T(0.01), ey = std::sqrt(2 * L * C) + T(0.01);
+    const T fx0 = std::ceil(u - ex - T(0.5)), fx1 = std::floor(u + ex - T(0.5));
+    const T fy0 = std::ceil(v - ey - T(0.5)), fy1 = std::floor(v + ey - T(0.5));
+    if (!(fx1 >= 0 && fy1 >= 0 && fx0 <= T(W - 1) && fy0 <= T(H - 1))) continue;
+    if (!(fx0 <= fx1 && fy0 <= fy1)) continue;
+    rect[0] = int(std::max(fx0, T(0)));
+    rect[1] = int(std::min(fx1, T(W - 1)));
+    rect[2] = int(std::max(fy0, T(0)));
+    rect[3] = int(std::min(fy1, T(H - 1)));
+    const T mid = T(0.5) * (A + C);
+    const T lam1 = mid + std::sqrt(std::max(T(0.1), mid * mid - det));
+    out.radii[i] = std::max(1, int(std::ceil(3 * std::sqrt(lam1))));
+    out.means2d[2 * i] = u;
+    out.means2d[2 * i + 1] = v;
+    out.conics[3 * i] = C / det;
+    out.conics[3 * i + 1] = -B / det;
+    out.conics[3 * i + 2] = A / det;
+    out.depths[i] = z;
+    out.opacities[i] = o;
+    // Colour from SH, view direction = mean - camera centre.
+    T basis[16];
+    V3 dir = m - cam.centre;
+    const T dn = dir.norm();
+    dir = dn > 0 ? V3(dir / dn) : V3(0, 0, 1);
+    sh::basis<T>(deg, dir.x(), dir.y(), dir.z(), basis);
+    for (int ch = 0; ch < 3; ++ch) {
+      T c = T(0.5);
+      for (int k = 0; k < K; ++k) c += basis[k] * T(g.sh[(i * K + k) * 3 + ch]);
+      out.sh_clamped[3 * i + ch] = c < 0;
+      out.colors[3 * i + ch] = std::max(c, T(0));
+    }
+  }
+
+  // 2. Depth order of the visible Gaussians (one global radix sort).
+  auto& keys = out.scratch_keys;
+  auto& ids = out.scratch_ids;
+  keys.clear();
+  ids.clear();
+  for (size_t i = 0; i < N; ++i)
+    if (out.radii[i] > 0) {
+      keys.push_back(depth_key(out.depths[i]));
+      ids.push_back(uint32_t(i));
+    }
+  radix_sort(keys, ids, out.scratch_keys2, out.scratch_ids2);
+  const size_t nvis = ids.size();
+
+  // 3. Binning: per thread per tile counts, prefix sum, scatter in depth order (stable).
+  const int maxthreads = omp_get_max_threads();
+  auto& counts = out.scratch_counts;
+  counts.resize(size_t(maxthreads) * ntiles);
+#pragma omp parallel
+  {
+    const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
+    const size_t b = nvis * tid / nt, e = nvis * (tid + 1) / nt;
+    uint32_t* cnt = &counts[size_t(tid) * ntiles];
+    std::fill(cnt, cnt + ntiles, 0u);
+    for (size_t k = b; k < e; ++k) {
+      const int* r = &out.rects[4 * size_t(ids[k])];
+      const int tx0 = r[0] / kTS, tx1 = r[1] / kTS, ty0 = r[2] / kTS, ty1 = r[3] / kTS;
+      for (int ty = ty0; ty <= ty1; ++ty)
+        for (int tx = tx0; tx <= tx1; ++tx) ++cnt[ty * tiles_x + tx];
+    }
+#pragma omp barrier
+#pragma omp single
+    {
+      uint32_t off = 0;
+      for (int t = 0; t < ntiles; ++t) {
+        out.tile_ranges[2 * t] = off;
+        for (int th = 0; th < nt; ++th) {
+          uint32_t& c = counts[size_t(th) * ntiles + t];
+          const uint32_t tmp = c;
+          c = off;
+          off += tmp;
+        }
+        out.tile_ranges[2 * t + 1] = off;
+      }
+      out.point_list.resize(off);
+    }
+    for (size_t k = b; k < e; ++k) {
+      const uint32_t id = ids[k];
+      const int* r = &out.rects[4 * size_t(id)];
+      const int tx0 = r[0] / kTS, tx1 = r[1] / kTS, ty0 = r[2] / kTS, ty1 = r[3] / kTS;
+      for (int ty = ty0; ty <= ty1; ++ty)
+        for (int tx = tx0; tx <= tx1; ++tx) out.point_list[cnt[ty * tiles_x + tx]++] = id;
+    }
+  }
+
+  // 4. Compositing, front to back, one tile per task.
+  const T bg[3] = {T(s.background[0]), T(s.background[1]), T(s.background[2])};
+#pragma omp parallel for schedule(dynamic, 2)
+  for (int tile = 0; tile < ntiles; ++tile) {
+    const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
+    alignas(64) T Tt[kTilePixels], C0[kTilePixels], C1[kTilePixels], C2[kTilePixels],
+        Dp[kTilePixels];
+    alignas(64) int32_t live[kTilePixels], last[kTilePixels];
+    int row_live[kTS];
+    int tile_live = 0;
+    for (int r = 0; r < kTS; ++r) {
+      row_live[r] = 0;
+      for (int c = 0; c < kTS; ++c) {
+        const int p = r * kTS + c;
+        Tt[p] = 1, C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
+        live[p] = (ox + c < W && oy + r < H) ? 1 : 0;
+        row_live[r] += live[p];
+      }
+      tile_live += row_live[r];
+    }
+    const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
+    alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
+        br[kBatch], bgc[kBatch], bbl[kBatch], bz[kBatch];
+    int by0[kBatch], by1[kBatch];
+    for (uint32_t b0 = start; b0 < end && tile_live > 0; b0 += kBatch) {
+      const int n = int(std::min<uint32_t>(kBatch, end - b0));
+      for (int k = 0; k < n; ++k) {
+        const uint32_t id = out.point_list[b0 + k];
+        bmx[k] = out.means2d[2 * id] - T(ox);
+        bmy[k] = out.means2d[2 * id + 1] - T(oy);
+        ba[k] = out.conics[3 * id], bb[k] = out.conics[3 * id + 1], bc[k] = out.conics[3 * id + 2];
+        bo[k] = out.opacities[id];
+        br[k] = out.colors[3 * id], bgc[k] = out.colors[3 * id + 1],
+        bbl[k] = out.colors[3 * id + 2];
+        bz[k] = out.depths[id];
+        by0[k] = std::max(out.rects[4 * id + 2] - oy, 0);
+        by1[k] = std::min(out.rects[4 * id + 3] - oy, kTS - 1);
+      }
+      for (int k = 0; k < n && tile_live > 0; ++k) {
+        const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
+        const T cr = br[k], cg = bgc[k], cb = bbl[k], zz = bz[k];
+        const int32_t idx1 = int32_t(b0 - start) + k + 1;
+        for (int r = by0[k]; r <= by1[k]; ++r) {
+          if (row_live[r] == 0) continue;
+          const T dy = bmy[k] - (T(r) + T(0.5));
+          const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
+          int nterm = 0;
+          T* tt = Tt + r * kTS;
+          T *c0 = C0 + r * kTS, *c1 = C1 + r * kTS, *c2 = C2 + r * kTS, *dp = Dp + r * kTS;
+          int32_t* lv = live + r * kTS;
+          int32_t* ls = last + r * kTS;
+#pragma omp simd reduction(+ : nterm)
+          for (int col = 0; col < kTS; ++col) {
+            const T dx = mx - (T(col) + T(0.5));
+            const T pw = -(T(0.5) * a * dx * dx + cdy) - bdy * dx;
+            const T al = std::min(T(0.99), o * fexp(pw));
+            const T Tp = tt[col];
+            const bool ok = (pw <= 0) & (al >= T(1.0f / 255.0f)) & (lv[col] != 0);
+            const T Tn = Tp * (T(1) - al);
+            const bool term = ok & (Tn < T(1e-4));
+            const bool con = ok & !term;
+            const T w = con ? al * Tp : T(0);
+            c0[col] += w * cr;
+            c1[col] += w * cg;
+            c2[col] += w * cb;
+            dp[col] += w * zz;
+            tt[col] = con ? Tn : Tp;
+            lv[col] = term ? 0 : lv[col];
+            ls[col] = con ? idx1 : ls[col];
+            nterm += term ? 1 : 0;
+          }
+          if (nterm) {
+            row_live[r] -= nterm;
+            tile_live -= nterm;
+          }
+        }
+      }
+    }
+    for (int r = 0; r < kTS && oy + r < H; ++r)
+      for (int c = 0; c < kTS && ox + c < W; ++c) {
+        const int p = r * kTS + c;
+        const size_t pix = size_t(oy + r) * W + ox + c;
+        out.color.data[3 * pix] = C0[p] + Tt[p] * bg[0];
+        out.color.data[3 * pix + 1] = C1[p] + Tt[p] * bg[1];
+        out.color.data[3 * pix + 2] = C2[p] + Tt[p] * bg[2];
+        out.alpha.data[pix] = 1 - Tt[p];
+        out.depth.data[pix] = Dp[p];
+        out.final_T[pix] = Tt[p];
+        out.n_contrib[pix] = uint32_t(last[p]);
+      }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+constexpr int kNG = 9;  // per-Gaussian screen-space grads: mx, my, a, b, c, opacity, r, g, b
+
+template <class G, class Res, class Img, class Grads>
+void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, const Res& fwd,
+                   const Img& dLdc, const Img& dLda, Grads& gr) {
+  using T = typename std::decay_t<decltype(fwd.conics)>::value_type;
+  using M3 = Eigen::Matrix<T, 3, 3>;
+  using V3 = Eigen::Matrix<T, 3, 1>;
+  using M2 = Eigen::Matrix<T, 2, 2>;
+  check_gaussians(g);
+  const CamT<T> cam(camera);
+  const int W = cam.W, H = cam.H;
+  const size_t N = g.size();
+  const int deg = g.sh_degree;
+  const int K = g.coeffs();
+  if (fwd.radii.size() != N || fwd.color.width != W || fwd.color.height != H)
+    throw Error("rasterize_backward: forward result does not match the Gaussians / camera");
+  if (dLdc.width != W || dLdc.height != H || dLdc.channels != 3)
+    throw Error("rasterize_backward: dL/dcolor must be W x H x 3");
+  const bool has_da = !dLda.data.empty();
+  if (has_da && (dLda.width != W || dLda.height != H || dLda.channels != 1))
+    throw Error("rasterize_backward: dL/dalpha must be W x H x 1 or empty");
+  const int tiles_x = (W + kTS - 1) / kTS, tiles_y = (H + kTS - 1) / kTS;
+  const int ntiles = tiles_x * tiles_y;
+  const int maxthreads = omp_get_max_threads();
+  const size_t stride = size_t(kNG) * N;
+  gr.scratch.resize(size_t(maxthreads) * stride);
+  const T bg[3] = {T(s.background[0]), T(s.background[1]), T(s.background[2])};
+
+#pragma omp parallel
+  {
+    const int tid = omp_get_thread_num();
+    T* acc = gr.scratch.data() + size_t(tid) * stride;
+    std::fill(acc, acc + stride, T(0));
+    // Threads that do not run (nt < maxthreads) must not leave stale data: zero the rest.
+#pragma omp single
+    for (int th = omp_get_num_threads(); th < maxthreads; ++th)
+      std::fill(gr.scratch.data() + size_t(th) * stride,
+                gr.scratch.data() + size_t(th + 1) * stride, T(0));
+#pragma omp for schedule(dynamic, 2)
+    for (int tile = 0; tile < ntiles; ++tile) {
+      const uint32_t start = fwd.tile_ranges[2 * tile], end = fwd.tile_ranges[2 * tile + 1];
+      if (start == end) continue;
+      const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
+      alignas(64) T Tt[kTilePixels], Tf[kTilePixels], R0[kTilePixels], R1[kTilePixels],
+          R2[kTilePixels], D0[kTilePixels], D1[kTilePixels], D2[kTilePixels], DA[kTilePixels];
+      alignas(64) int32_t last[kTilePixels];
+      int row_max[kTS];
+      int jmax = 0;
+      for (int r = 0; r < kTS; ++r) {
+        row_max[r] = 0;
+        for (int c = 0; c < kTS; ++c) {
+          const int p = r * kTS + c;
+          if (ox + c < W && oy + r < H) {
+            const size_t pix = size_t(oy + r) * W + ox + c;
+            Tt[p] = Tf[p] = fwd.final_T[pix];
+            last[p] = int32_t(fwd.n_contrib[pix]);
+            D0[p] = T(dLdc.data[3 * pix]), D1[p] = T(dLdc.data[3 * pix + 1]),
+            D2[p] = T(dLdc.data[3 * pix + 2]);
+            DA[p] = has_da ? T(dLda.data[pix]) : T(0);
+          } else {
+            Tt[p] = Tf[p] = 1, last[p] = 0, D0[p] = D1[p] = D2[p] = DA[p] = 0;
+          }
+          R0[p] = bg[0], R1[p] = bg[1], R2[p] = bg[2];
+          row_max[r] = std::max(row_max[r], int(last[p]));
+        }
+        jmax = std::max(jmax, row_max[r]);
+      }
+      alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
+          br[kBatch], bgc[kBatch], bbl[kBatch];
+      int by0[kBatch], by1[kBatch];
+      uint32_t bid[kBatch];
+      for (int hi = jmax; hi > 0; hi -= kBatch) {
+        const int lo = std::max(0, hi - kBatch);
+        for (int j = lo; j < hi; ++j) {
+          const int k = j - lo;
+          const uint32_t id = fwd.point_list[start + j];
+          bid[k] = id;
+          bmx[k] = fwd.means2d[2 * id] - T(ox);
+          bmy[k] = fwd.means2d[2 * id + 1] - T(oy);
+          ba[k] = fwd.conics[3 * id], bb[k] = fwd.conics[3 * id + 1];
+          bc[k] = fwd.conics[3 * id + 2];
+          bo[k] = fwd.opacities[id];
+          br[k] = fwd.colors[3 * id], bgc[k] = fwd.colors[3 * id + 1];
+          bbl[k] = fwd.colors[3 * id + 2];
+          by0[k] = std::max(fwd.rects[4 * id + 2] - oy, 0);
+          by1[k] = std::min(fwd.rects[4 * id + 3] - oy, kTS - 1);
+        }
+        for (int j = hi - 1; j >= lo; --j) {
+          const int k = j - lo;
+          const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
+          const T cr = br[k], cg = bgc[k], cb = bbl[k];
+          T s_mx = 0, s_my = 0, s_a = 0, s_b = 0, s_c = 0, s_o = 0, s_r = 0, s_g = 0, s_bl = 0;
+          for (int r = by0[k]; r <= by1[k]; ++r) {
+            if (row_max[r] <= j) continue;
+            const T dy = bmy[k] - (T(r) + T(0.5));
+            const int ro = r * kTS;
+#pragma omp simd reduction(+ : s_mx, s_my, s_a, s_b, s_c, s_o, s_r, s_g, s_bl)
+            for (int col = 0; col < kTS; ++col) {
+              const int p = ro + col;
+              const T dx = mx - (T(col) + T(0.5));
+              const T pw = -T(0.5) * (a * dx * dx + c * dy * dy) - b * dx * dy;
+              const T Gv = fexp(pw);
+              const T og = o * Gv;
+              const T al = std::min(T(0.99), og);
+              const bool ok = (j < last[p]) & (pw <= 0) & (al >= T(1.0f / 255.0f));
+              const T om = T(1) - al;
+              const T Tj = Tt[p] / om;
+              const T dLdal =
+                  Tj * ((cr - R0[p]) * D0[p] + (cg - R1[p]) * D1[p] + (cb - R2[p]) * D2[p]) +
+                  DA[p] * Tf[p] / om;
+              const T w = ok ? al * Tj : T(0);
+              s_r += w * D0[p];
+              s_g += w * D1[p];
+              s_bl += w * D2[p];
+              R0[p] = ok ? cr * al + om * R0[p] : R0[p];
+              R1[p] = ok ? cg * al + om * R1[p] : R1[p];
+              R2[p] = ok ? cb * al + om * R2[p] : R2[p];
+              Tt[p] = ok ? Tj : Tt[p];
+              const T dLdog = (ok & (og <= T(0.99))) ? dLdal : T(0);
+              s_o += Gv * dLdog;
+              const T dLdpw = og * dLdog;
+              s_mx -= dLdpw * (a * dx + b * dy);
+              s_my -= dLdpw * (c * dy + b * dx);
+              s_a -= T(0.5) * dx * dx * dLdpw;
+              s_c -= T(0.5) * dy * dy * dLdpw;
+              s_b -= dx * dy * dLdpw;
+            }
+          }
+          T* ga = acc + size_t(kNG) * bid[k];
+          ga[0] += s_mx, ga[1] += s_my, ga[2] += s_a, ga[3] += s_b, ga[4] += s_c;
+          ga[5] += s_o, ga[6] += s_r, ga[7] += s_g, ga[8] += s_bl;
+        }
+      }
+    }
+  }
+
+  // Per-Gaussian chain rule to the raw parameters.
+  gr.means.resize(3 * N);
+  gr.log_scales.resize(3 * N);
+  gr.quats.resize(4 * N);
+  gr.opacity_logits.resize(N);
+  gr.sh.resize(N * size_t(K) * 3);
+  gr.means2d.resize(2 * N);
+#pragma omp parallel for schedule(static)
+  for (size_t i = 0; i < N; ++i) {
+    T gs[kNG] = {0};
+    for (int th = 0; th < maxthreads; ++th) {
+      const T* a = gr.scratch.data() + size_t(th) * stride + size_t(kNG) * i;
+      for (int q = 0; q < kNG; ++q) gs[q] += a[q];
+    }
+    for (int q = 0; q < 3; ++q) gr.means[3 * i + q] = 0, gr.log_scales[3 * i + q] = 0;
+    for (int q = 0; q < 4; ++q) gr.quats[4 * i + q] = 0;
+    for (int q = 0; q < 3 * K; ++q) gr.sh[i * 3 * K + q] = 0;
+    gr.opacity_logits[i] = 0;
+    gr.means2d[2 * i] = gs[0];
+    gr.means2d[2 * i + 1] = gs[1];
+    if (fwd.radii[i] == 0) continue;
+    const T o = fwd.opacities[i];
+    gr.opacity_logits[i] = gs[5] * o * (1 - o);
+    const V3 m(T(g.means[3 * i]), T(g.means[3 * i + 1]), T(g.means[3 * i + 2]));
+    // Colour -> SH coefficients and view direction.
+    T gcol[3];
+    for (int ch = 0; ch < 3; ++ch) gcol[ch] = fwd.sh_clamped[3 * i + ch] ? T(0) : gs[6 + ch];
+    V3 vdir = m - cam.centre;
+    const T vn = vdir.norm();
+    const V3 dir = vn > 0 ? V3(vdir / vn) : V3(0, 0, 1);
+    T basis[16];
+    sh::basis<T>(deg, dir.x(), dir.y(), dir.z(), basis);
+    for (int k = 0; k < K; ++k)
+      for (int ch = 0; ch < 3; ++ch) gr.sh[(i * K + k) * 3 + ch] = basis[k] * gcol[ch];
+    V3 gmean = V3::Zero();
+    if (deg > 0 && vn > 0) {
+      T bx[16], by[16], bz[16];
+      sh::basis_grad<T>(deg, dir.x(), dir.y(), dir.z(), bx, by, bz);
+      V3 gdir = V3::Zero();
+      for (int k = 1; k < K; ++k) {
+        T w = 0;
+        for (int ch = 0; ch < 3; ++ch) w += T(g.sh[(i * K + k) * 3 + ch]) * gcol[ch];
+        gdir += w * V3(bx[k], by[k], bz[k]);
+      }
+      gmean += (gdir - dir * dir.dot(gdir)) / vn;
+    }
+    // Recompute the projection pieces.
+    const V3 p = cam.R * m + cam.t;
+    const T x = p.x(), y = p.y(), z = p.z();
+    const T qr[4] = {T(g.quats[4 * i]), T(g.quats[4 * i + 1]), T(g.quats[4 * i + 2]),
+                     T(g.quats[4 * i + 3])};
+    const T qn = std::sqrt(qr[0] * qr[0] + qr[1] * qr[1] + qr[2] * qr[2] + qr[3] * qr[3]);
+    const T qw = qr[0] / qn, qx = qr[1] / qn, qy = qr[2] / qn, qz = qr[3] / qn;
+    const M3 Rq = quat_to_rot(qw, qx, qy, qz);
+    V3 sc;
+    M3 Mm;
+    for (int c = 0; c < 3; ++c) {
+      sc[c] = std::exp(T(g.log_scales[3 * i + c]));
+      Mm.col(c) = Rq.col(c) * sc[c];
+    }
+    const M3 S3 = Mm * Mm.transpose();
+    const T rx = x / z, ry = y / z;
+    const T ux = std::clamp(rx, cam.lox, cam.hix), uy = std::clamp(ry, cam.loy, cam.hiy);
+    Eigen::Matrix<T, 2, 3> J;
+    J << cam.fx / z, 0, -cam.fx * ux / z, 0, cam.fy / z, -cam.fy * uy / z;
+    const Eigen::Matrix<T, 2, 3> Tm = J * cam.R;
+    // Conic -> 2D covariance (incl. low-pass, which is a constant).
+    M2 Q;
+    Q << fwd.conics[3 * i], fwd.conics[3 * i + 1], fwd.conics[3 * i + 1], fwd.conics[3 * i + 2];
+    M2 GQ;
+    GQ << gs[2], T(0.5) * gs[3], T(0.5) * gs[3], gs[4];
+    const M2 GS2 = -Q * GQ * Q;
+    const M3 GS3 = Tm.transpose() * GS2 * Tm;
+    const Eigen::Matrix<T, 2, 3> GTm = 2 * GS2 * Tm * S3;
+    const Eigen::Matrix<T, 2, 3> GJ = GTm * cam.R.transpose();
+    V3 gp = V3::Zero();
+    // means2d: u = fx x/z + cx, v = fy y/z + cy.
+    gp.x() += gs[0] * cam.fx / z;
+    gp.y() += gs[1] * cam.fy / z;
+    gp.z() += -gs[0] * cam.fx * x / (z * z) - gs[1] * cam.fy * y / (z * z);
+    // Jacobian entries: J00 = fx/z, J11 = fy/z, J02 = -fx ux/z, J12 = -fy uy/z.
+    gp.z() += -GJ(0, 0) * cam.fx / (z * z) - GJ(1, 1) * cam.fy / (z * z);
+    gp.z() += GJ(0, 2) * cam.fx * ux / (z * z) + GJ(1, 2) * cam.fy * uy / (z * z);
+    if (rx > cam.lox && rx < cam.hix) {
+      const T gux = -GJ(0, 2) * cam.fx / z;
+      gp.x() += gux / z;
+      gp.z() -= gux * x / (z * z);
+    }
+    if (ry > cam.loy && ry < cam.hiy) {
+      const T guy = -GJ(1, 2) * cam.fy / z;
+      gp.y() += guy / z;
+      gp.z() -= guy * y / (z * z);
+    }
+    gmean += cam.R.transpose() * gp;
+    for (int q = 0; q < 3; ++q) gr.means[3 * i + q] = gmean[q];
+    // Covariance -> scale and rotation.
+    const M3 GM = 2 * GS3 * Mm;
+    M3 GR;
+    for (int c = 0; c < 3; ++c) {
+      GR.col(c) = GM.col(c) * sc[c];
+      gr.log_scales[3 * i + c] = GM.col(c).dot(Rq.col(c)) * sc[c];
+    }
+    const T gw = 2 * (-qz * GR(0, 1) + qy * GR(0, 2) + qz * GR(1, 0) - qx * GR(1, 2) -
+                      qy * GR(2, 0) + qx * GR(2, 1));
+    const T gx = 2 * (qy * GR(0, 1) + qz * GR(0, 2) + qy * GR(1, 0) - 2 * qx * GR(1, 1) -
+                      qw * GR(1, 2) + qz * GR(2, 0) + qw * GR(2, 1) - 2 * qx * GR(2, 2));
+    const T gy = 2 * (-2 * qy * GR(0, 0) + qx * GR(0, 1) + qw * GR(0, 2) + qx * GR(1, 0) +
+                      qz * GR(1, 2) - qw * GR(2, 0) + qz * GR(2, 1) - 2 * qy * GR(2, 2));
+    const T gz = 2 * (-2 * qz * GR(0, 0) - qw * GR(0, 1) + qx * GR(0, 2) + qw * GR(1, 0) -
+                      2 * qz * GR(1, 1) + qy * GR(1, 2) + qx * GR(2, 0) + qy * GR(2, 1));
+    const T dotq = qw * gw + qx * gx + qy * gy + qz * gz;
+    gr.quats[4 * i] = (gw - qw * dotq) / qn;
+    gr.quats[4 * i + 1] = (gx - qx * dotq) / qn;
+    gr.quats[4 * i + 2] = (gy - qy * dotq) / qn;
+    gr.quats[4 * i + 3] = (gz - qz * dotq) / qn;
+  }
+}
+
+}  // namespace ks::raster_detail

@@ -1,0 +1,77 @@
+#include "reconstruct/adam.hpp"
+
+#include <cmath>
+
+#include "core/error.hpp"
+
+namespace ks {
+
+int Adam::add_group(const std::string& name, std::vector<float>* params, float lr) {
+  AdamGroup g;
+  g.name = name;
+  g.params = params;
+  g.lr = lr;
+  g.m.assign(params->size(), 0.f);
+  g.v.assign(params->size(), 0.f);
+  groups_.push_back(std::move(g));
+  return int(groups_.size()) - 1;
+}
+
+float Adam::lr_scale() const {
+  const double T = std::max(1, total_steps);
+  const double t = std::min<double>(t_, T);
+  const double c = 0.5 * (1.0 + std::cos(M_PI * t / T));
+  return float(final_fraction + (1.0 - final_fraction) * c);
+}
+
+void Adam::step(const std::vector<const std::vector<float>*>& grads) {
+  if (grads.size() != groups_.size())
+    throw Error("Adam::step: " + std::to_string(grads.size()) + " gradients for " +
+                std::to_string(groups_.size()) + " groups");
+  const float scale = lr_scale();
+  ++t_;
+  const double bc1 = 1.0 - std::pow(double(beta1), t_);
+  const double bc2 = 1.0 - std::pow(double(beta2), t_);
+  for (size_t gi = 0; gi < groups_.size(); ++gi) {
+    AdamGroup& g = groups_[gi];
+    std::vector<float>& p = *g.params;
+    const std::vector<float>& d = *grads[gi];
+    if (d.size() != p.size() || g.m.size() != p.size())
+      throw Error("Adam::step: group '" + g.name + "' has " + std::to_string(p.size()) +
+                  " parameters, " + std::to_string(d.size()) + " gradients, " +
+                  std::to_string(g.m.size()) + " moments");
+    const float step = float(g.lr * scale / bc1);
+    const float ibc2 = float(1.0 / bc2);
+    const long n = long(p.size());
+#pragma omp parallel for schedule(static) if (n > 65536)
+    for (long i = 0; i < n; ++i) {
+      g.m[i] = beta1 * g.m[i] + (1 - beta1) * d[i];
+      g.v[i] = beta2 * g.v[i] + (1 - beta2) * d[i] * d[i];
+      p[i] -= step * g.m[i] / (std::sqrt(g.v[i] * ibc2) + eps);
+    }
+  }
+}
+
+void Adam::resize_group(int gi) {
+  AdamGroup& g = groups_[size_t(gi)];
+  g.m.resize(g.params->size(), 0.f);
+  g.v.resize(g.params->size(), 0.f);
+}
+
+void Adam::remap_group(int gi, const std::vector<int>& src, int stride) {
+  AdamGroup& g = groups_[size_t(gi)];
+  std::vector<float> m(src.size() * stride, 0.f), v(src.size() * stride, 0.f);
+  for (size_t i = 0; i < src.size(); ++i) {
+    if (src[i] < 0) continue;
+    if (size_t(src[i] + 1) * stride > g.m.size())
+      throw Error("Adam::remap_group: source index " + std::to_string(src[i]) + " out of range");
+    for (int k = 0; k < stride; ++k) {
+      m[i * stride + k] = g.m[size_t(src[i]) * stride + k];
+      v[i * stride + k] = g.v[size_t(src[i]) * stride + k];
+    }
+  }
+  g.m = std::move(m);
+  g.v = std::move(v);
+}
+
+}  // namespace ks

@@ -1,0 +1,60 @@
+#pragma once
+// A small fully connected network evaluated on batches of points with Eigen matrix products.
+// Points are columns: input X is in_dim x N (column-major, i.e. the point-major n x in_dim array
+// the triplane writes). Hidden layers use ReLU; the output layer is linear (the decoders apply
+// their own output activations, see decoders.hpp).
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+namespace ks {
+
+template <typename T>
+struct MlpT {
+  using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
+  using Vec = Eigen::Matrix<T, Eigen::Dynamic, 1>;
+  std::vector<Mat> W;  // layer l: out_l x in_l
+  std::vector<Vec> b;  // out_l
+
+  // dims = {in, hidden..., out}. He-uniform init for hidden layers; the last layer's weights are
+  // scaled by last_scale (small outputs at the start) and its biases are zero.
+  void init(const std::vector<int>& dims, uint64_t seed, T last_scale = T(0.01));
+  int in_dim() const { return int(W.front().cols()); }
+  int out_dim() const { return int(W.back().rows()); }
+  size_t num_params() const;
+  // Flattens parameters / gradients in a fixed order (W0, b0, W1, b1, ...): for the optimiser.
+  void pack(std::vector<T>& out) const;
+  void unpack(const std::vector<T>& in);
+};
+
+// Activations kept for the backward pass (reuse across iterations: no reallocation).
+template <typename T>
+struct MlpCacheT {
+  std::vector<typename MlpT<T>::Mat> act;  // act[0] = input, act[l] = output of layer l-1
+  typename MlpT<T>::Mat delta, delta_next;
+};
+
+template <typename T>
+struct MlpGradsT {
+  std::vector<typename MlpT<T>::Mat> W;
+  std::vector<typename MlpT<T>::Vec> b;
+  void zero_like(const MlpT<T>& m);
+  void pack(std::vector<T>& out) const;
+};
+
+// Y = mlp(X); X: in x N (Map over caller memory), Y: out x N.
+template <typename T>
+void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>& X,
+                 MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y);
+// Given dL/dY (out x N): accumulates weight/bias gradients into g and, if dX != nullptr, writes
+// dL/dX (in x N).
+template <typename T>
+void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
+                  const Eigen::Ref<const typename MlpT<T>::Mat>& dY, MlpGradsT<T>& g,
+                  typename MlpT<T>::Mat* dX);
+
+using Mlp = MlpT<float>;
+using MlpCache = MlpCacheT<float>;
+using MlpGrads = MlpGradsT<float>;
+
+}  // namespace ks

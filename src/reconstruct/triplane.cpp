@@ -1,0 +1,129 @@
+#include "reconstruct/triplane.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+namespace ks {
+
+namespace {
+
+template <typename T>
+struct Bilinear {
+  int i00;  // index of the (u0, v0) texel (in texels, times channels later)
+  int du, dv;
+  T w00, w10, w01, w11;
+};
+
+template <typename T>
+inline Bilinear<T> bilinear(T a, T b, T lo_a, T hi_a, T lo_b, T hi_b, int res) {
+  const T sa = (a - lo_a) / (hi_a - lo_a) * T(res - 1);
+  const T sb = (b - lo_b) / (hi_b - lo_b) * T(res - 1);
+  const T ca = std::clamp(sa, T(0), T(res - 1));
+  const T cb = std::clamp(sb, T(0), T(res - 1));
+  int u0 = std::min(int(ca), res - 2);
+  int v0 = std::min(int(cb), res - 2);
+  const T fu = ca - T(u0), fv = cb - T(v0);
+  Bilinear<T> r;
+  r.i00 = v0 * res + u0;
+  r.du = 1;
+  r.dv = res;
+  r.w00 = (1 - fu) * (1 - fv);
+  r.w10 = fu * (1 - fv);
+  r.w01 = (1 - fu) * fv;
+  r.w11 = fu * fv;
+  return r;
+}
+
+template <typename T>
+inline Bilinear<T> lookup(const TriplaneT<T>& tp, int plane, T x, T y, T z) {
+  switch (plane) {
+    case 0:
+      return bilinear(x, y, tp.lo[0], tp.hi[0], tp.lo[1], tp.hi[1], tp.res);
+    case 1:
+      return bilinear(x, z, tp.lo[0], tp.hi[0], tp.lo[2], tp.hi[2], tp.res);
+    default:
+      return bilinear(y, z, tp.lo[1], tp.hi[1], tp.lo[2], tp.hi[2], tp.res);
+  }
+}
+
+}  // namespace
+
+template <typename T>
+void TriplaneT<T>::init(int r, int c, const T box_lo[3], const T box_hi[3], uint64_t seed,
+                        T init_scale) {
+  res = r;
+  channels = c;
+  for (int k = 0; k < 3; ++k) lo[k] = box_lo[k], hi[k] = box_hi[k];
+  planes.assign(size(), T(0));
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (auto& p : planes) p = T(u(rng)) * init_scale;
+}
+
+template <typename T>
+void triplane_forward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T* zs, int n,
+                      T* feats) {
+  const int C = tp.channels;
+  const int F = 3 * C;
+#pragma omp parallel for schedule(static) if (n > 1024)
+  for (int i = 0; i < n; ++i) {
+    T* out = feats + size_t(i) * F;
+    for (int p = 0; p < 3; ++p) {
+      const Bilinear<T> b = lookup(tp, p, xs[i], ys[i], zs[i]);
+      const T* base = tp.planes.data() + p * tp.plane_size();
+      const T* t00 = base + size_t(b.i00) * C;
+      const T* t10 = t00 + size_t(b.du) * C;
+      const T* t01 = t00 + size_t(b.dv) * C;
+      const T* t11 = t01 + size_t(b.du) * C;
+      T* o = out + p * C;
+      for (int c = 0; c < C; ++c)
+        o[c] = b.w00 * t00[c] + b.w10 * t10[c] + b.w01 * t01[c] + b.w11 * t11[c];
+    }
+  }
+}
+
+template <typename T>
+void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T* zs, int n,
+                       const T* dfeats, T* dplanes) {
+  const int C = tp.channels;
+  const int F = 3 * C;
+  constexpr int kBlock = 8;
+  const int blocks = (C + kBlock - 1) / kBlock;
+  const int tasks = 3 * blocks;
+#pragma omp parallel for schedule(dynamic, 1) if (n > 1024)
+  for (int task = 0; task < tasks; ++task) {
+    const int p = task / blocks;
+    const int c0 = (task % blocks) * kBlock;
+    const int c1 = std::min(C, c0 + kBlock);
+    T* base = dplanes + p * tp.plane_size();
+    for (int i = 0; i < n; ++i) {
+      const Bilinear<T> b = lookup(tp, p, xs[i], ys[i], zs[i]);
+      const T* g = dfeats + size_t(i) * F + p * C;
+      T* t00 = base + size_t(b.i00) * C;
+      T* t10 = t00 + size_t(b.du) * C;
+      T* t01 = t00 + size_t(b.dv) * C;
+      T* t11 = t01 + size_t(b.du) * C;
+      for (int c = c0; c < c1; ++c) {
+        const T gc = g[c];
+        t00[c] += b.w00 * gc;
+        t10[c] += b.w10 * gc;
+        t01[c] += b.w01 * gc;
+        t11[c] += b.w11 * gc;
+      }
+    }
+  }
+}
+
+template struct TriplaneT<float>;
+template struct TriplaneT<double>;
+template void triplane_forward(const TriplaneT<float>&, const float*, const float*, const float*,
+                               int, float*);
+template void triplane_forward(const TriplaneT<double>&, const double*, const double*,
+                               const double*, int, double*);
+template void triplane_backward(const TriplaneT<float>&, const float*, const float*, const float*,
+                                int, const float*, float*);
+template void triplane_backward(const TriplaneT<double>&, const double*, const double*,
+                                const double*, int, const double*, double*);
+
+}  // namespace ks

@@ -1,0 +1,106 @@
+#include "avatar/pose.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include "avatar/tiny_avatar.hpp"
+
+namespace ks {
+namespace {
+
+Eigen::Quaternionf quat_at(const Gaussians& g, int i) {
+  return Eigen::Quaternionf(g.quats[4 * i], g.quats[4 * i + 1], g.quats[4 * i + 2],
+                            g.quats[4 * i + 3])
+      .normalized();
+}
+
+BodyParams zero_params(const Avatar& a) {
+  BodyParams p;
+  p.body_pose = Eigen::VectorXd::Zero(3 * (a.num_joints() - 1));
+  return p;
+}
+
+TEST(AvatarPose, IdentityPoseReturnsCanonical) {
+  const Avatar a = test::tiny_avatar(1);
+  const Gaussians g = pose_avatar(a, zero_params(a));
+  ASSERT_EQ(g.size(), a.gaussians.size());
+  for (size_t k = 0; k < g.means.size(); ++k) EXPECT_NEAR(g.means[k], a.gaussians.means[k], 1e-6);
+  for (int i = 0; i < a.num_gaussians(); ++i)
+    EXPECT_NEAR(std::abs(quat_at(g, i).dot(quat_at(a.gaussians, i))), 1.0, 1e-6);
+  EXPECT_EQ(g.log_scales, a.gaussians.log_scales);
+  EXPECT_EQ(g.sh, a.gaussians.sh);
+  EXPECT_EQ(g.opacity_logits, a.gaussians.opacity_logits);
+}
+
+TEST(AvatarPose, GlobalRotationRotatesEverything) {
+  const Avatar a = test::tiny_avatar();
+  BodyParams p = zero_params(a);
+  p.global_orient = Eigen::Vector3d(0.2, -0.7, 0.4);
+  p.transl = Eigen::Vector3d(0.1, 0.2, -0.3);
+  const Eigen::Matrix3f R = Eigen::AngleAxisd(p.global_orient.norm(), p.global_orient.normalized())
+                                .toRotationMatrix()
+                                .cast<float>();
+  const Gaussians g = pose_avatar(a, p);
+  // The root joint is at the origin, so x' = R x + t.
+  for (int i = 0; i < a.num_gaussians(); ++i) {
+    const Eigen::Vector3f x(&a.gaussians.means[3 * i]);
+    const Eigen::Vector3f y = R * x + p.transl.cast<float>();
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(g.means[3 * i + k], y[k], 1e-5);
+    const Eigen::Quaternionf expect = Eigen::Quaternionf(R) * quat_at(a.gaussians, i);
+    EXPECT_NEAR(std::abs(quat_at(g, i).dot(expect.normalized())), 1.0, 1e-5);
+  }
+}
+
+TEST(AvatarPose, ChildJointRotatesAboutItsRestLocation) {
+  const Avatar a = test::tiny_avatar();
+  BodyParams p = zero_params(a);
+  p.body_pose[3 * 1 + 2] = M_PI / 2;  // joint 2 (head) 90 degrees about z
+  const Gaussians g = pose_avatar(a, p);
+  // Gaussian 2 is fully on joint 2, rest joint (0, 1, 0): a point (x, y) -> (-(y-1), x) + (0, 1).
+  const float x = a.gaussians.means[6], y = a.gaussians.means[7];
+  EXPECT_NEAR(g.means[6], -(y - 1.f), 1e-5);
+  EXPECT_NEAR(g.means[7], x + 1.f, 1e-5);
+  // Gaussian 3 is fully on the root: unchanged.
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(g.means[9 + k], a.gaussians.means[9 + k], 1e-6);
+  // Posed joints: joint 2 stays at its rest location (its own rotation does not move it).
+  const Eigen::MatrixXd J = avatar_posed_joints(a, p);
+  EXPECT_LT((J - a.rest_joints).norm(), 1e-12);
+}
+
+TEST(AvatarPose, PoseCorrectivesAreAdded) {
+  Avatar a = test::tiny_avatar();
+  const int P = 9 * (a.num_joints() - 1);
+  a.posedirs = Eigen::MatrixXf::Zero(3 * a.num_gaussians(), P);
+  // Gaussian 3 (root-bound) moves by +1 in x per unit of (R_1 - I)[0][0].
+  a.posedirs(9, 0) = 1.f;
+  BodyParams p = zero_params(a);
+  p.body_pose[0 * 3 + 2] = 0.5;  // joint 1 about z: (R - I)[0][0] = cos(0.5) - 1
+  const Gaussians g = pose_avatar(a, p);
+  EXPECT_NEAR(g.means[9], a.gaussians.means[9] + (std::cos(0.5) - 1.0), 1e-5);
+}
+
+TEST(AvatarPose, BlendedRotationIsUnitQuaternion) {
+  const Avatar a = test::tiny_avatar();
+  BodyParams p = zero_params(a);
+  p.body_pose << 0.3, 1.2, -0.4, 0.9, 0.1, 0.5;
+  const Gaussians g = pose_avatar(a, p);
+  for (int i = 0; i < a.num_gaussians(); ++i) {
+    const Eigen::Vector4f q(&g.quats[4 * i]);
+    EXPECT_NEAR(q.norm(), 1.0, 1e-5);
+  }
+}
+
+TEST(AvatarPose, MatrixToQuatMatchesEigen) {
+  for (int t = 0; t < 50; ++t) {
+    const Eigen::Quaternionf q = Eigen::Quaternionf::UnitRandom();
+    const Eigen::Matrix<float, 3, 3, Eigen::RowMajor> R = q.toRotationMatrix();
+    float out[4];
+    matrix_to_quat(R.data(), out);
+    EXPECT_NEAR(std::abs(out[0] * q.w() + out[1] * q.x() + out[2] * q.y() + out[3] * q.z()), 1.0,
+                1e-5);
+  }
+}
+
+}  // namespace
+}  // namespace ks

@@ -1,0 +1,286 @@
+#include "raster/rasterizer.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <random>
+
+#include "raster/raster_double.hpp"
+#include "raster/raster_scene.hpp"
+
+namespace ks {
+namespace {
+
+using test::random_scene;
+using test::reference_render;
+using test::SceneOptions;
+using test::test_camera;
+
+void expect_matches_reference(const Gaussians& g, const Camera& cam, const RasterSettings& s) {
+  RasterResult r;
+  rasterize_forward(g, cam, s, r);
+  const auto ref = reference_render(g, cam, s);
+  const double p_col = test::psnr(ref.color, r.color.data);
+  const double p_alpha = test::psnr(ref.alpha, r.alpha.data);
+  EXPECT_GE(p_col, 35.0);
+  EXPECT_GE(p_alpha, 35.0);
+  // In practice the float tile renderer is near-exact against the double reference.
+  EXPECT_GE(p_col, 60.0) << "colour PSNR " << p_col;
+  double max_depth_err = 0;
+  for (size_t i = 0; i < ref.depth.size(); ++i)
+    max_depth_err = std::max(max_depth_err, std::abs(ref.depth[i] - r.depth.data[i]));
+  EXPECT_LT(max_depth_err, 1e-3);
+  // The double instantiation of the same code agrees to rounding.
+  RasterResultD rd;
+  rasterize_forward(GaussiansD::from(g), cam, s, rd);
+  double max_err = 0;
+  for (size_t i = 0; i < ref.color.size(); ++i)
+    max_err = std::max(max_err, std::abs(ref.color[i] - rd.color.data[i]));
+  EXPECT_LT(max_err, 1e-9);
+}
+
+TEST(Raster, ForwardMatchesReferenceSH0) {
+  SceneOptions o;
+  o.n = 60;
+  RasterSettings s;
+  s.background[0] = 0.2f, s.background[1] = 0.5f, s.background[2] = 0.9f;
+  for (unsigned seed = 1; seed <= 3; ++seed)
+    expect_matches_reference(random_scene(o, seed), test_camera(45, 70, 0.3, 0.62), s);
+}
+
+TEST(Raster, ForwardMatchesReferenceSH3) {
+  SceneOptions o;
+  o.n = 80;
+  o.sh_degree = 3;
+  o.opacity_max = 0.999;  // exercises the 0.99 clamp and early termination
+  RasterSettings s;
+  s.background[1] = 1.0f;
+  for (unsigned seed = 10; seed <= 12; ++seed)
+    expect_matches_reference(random_scene(o, seed), test_camera(67, 50, 0.61, 0.35), s);
+}
+
+TEST(Raster, ForwardIsDeterministicAndReusesBuffers) {
+  SceneOptions o;
+  o.n = 200;
+  o.sh_degree = 1;
+  const Gaussians g = random_scene(o, 5);
+  const Camera cam = test_camera(70, 90);
+  RasterResult a, b;
+  rasterize_forward(g, cam, {}, a);
+  const float* ptr = a.color.data.data();
+  rasterize_forward(g, cam, {}, a);
+  rasterize_forward(g, cam, {}, b);
+  EXPECT_EQ(ptr, a.color.data.data());
+  EXPECT_EQ(a.color.data, b.color.data);
+  EXPECT_EQ(a.point_list, b.point_list);
+}
+
+TEST(Raster, CullsBehindCameraAndReportsScreenData) {
+  Gaussians g;
+  g.resize(2);
+  g.means = {0, 0, 0, 0, 0, 5};  // second one is behind the camera (camera at z = 2)
+  for (float& l : g.log_scales) l = std::log(0.05f);
+  const Camera cam = test_camera(32, 32, 0.5, 0.5);
+  RasterResult r;
+  rasterize_forward(g, cam, {}, r);
+  EXPECT_GT(r.radii[0], 0);
+  EXPECT_EQ(r.radii[1], 0);
+  const auto uv = cam.project({0, 0, 0});
+  EXPECT_NEAR(r.means2d[0], uv.x(), 1e-4);
+  EXPECT_NEAR(r.means2d[1], uv.y(), 1e-4);
+}
+
+// A point at (u, v) lies in pixel (floor(u), floor(v)): a tiny Gaussian lights that pixel.
+TEST(Raster, PixelCentreConvention) {
+  Gaussians g;
+  g.resize(1);
+  Camera cam = test_camera(16, 16, 0.5, 0.5);
+  cam.R.setIdentity();
+  cam.t.setZero();
+  cam.cx = 5.3, cam.cy = 9.7;
+  g.means = {0, 0, 1};
+  for (float& l : g.log_scales) l = std::log(1e-5f);
+  g.opacity_logits[0] = 5;
+  RasterResult r;
+  rasterize_forward(g, cam, {}, r);
+  int best = -1;
+  float bestv = -1;
+  for (int i = 0; i < 256; ++i)
+    if (r.alpha.data[i] > bestv) bestv = r.alpha.data[i], best = i;
+  EXPECT_EQ(best % 16, 5);
+  EXPECT_EQ(best / 16, 9);
+}
+
+// ---- gradients -----------------------------------------------------------------------------
+
+struct Loss {
+  ImageD wc, wa;
+  double operator()(const RasterResultD& r) const {
+    double l = 0;
+    for (size_t i = 0; i < wc.data.size(); ++i) l += wc.data[i] * r.color.data[i];
+    for (size_t i = 0; i < wa.data.size(); ++i) l += wa.data[i] * r.alpha.data[i];
+    return l;
+  }
+};
+
+Loss random_loss(int w, int h, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> U(-1, 1);
+  Loss L;
+  L.wc = ImageD(w, h, 3);
+  L.wa = ImageD(w, h, 1);
+  for (double& v : L.wc.data) v = U(rng);
+  for (double& v : L.wa.data) v = U(rng);
+  return L;
+}
+
+void check_group(const char* name, std::vector<double>& param, const std::vector<double>& grad,
+                 const std::function<double()>& eval) {
+  ASSERT_EQ(param.size(), grad.size()) << name;
+  const double eps = 1e-6;
+  double max_abs = 0;
+  for (double gv : grad) max_abs = std::max(max_abs, std::abs(gv));
+  EXPECT_GT(max_abs, 1e-6) << name << ": all gradients are zero";
+  for (size_t i = 0; i < param.size(); ++i) {
+    const double keep = param[i];
+    param[i] = keep + eps;
+    const double lp = eval();
+    param[i] = keep - eps;
+    const double lm = eval();
+    param[i] = keep;
+    const double fd = (lp - lm) / (2 * eps);
+    EXPECT_NEAR(grad[i], fd, 1e-6 + 1e-5 * std::max(std::abs(fd), max_abs))
+        << name << "[" << i << "]";
+  }
+}
+
+void gradient_check(GaussiansD g, const Camera& cam, const RasterSettings& s, unsigned seed) {
+  const Loss L = random_loss(cam.width, cam.height, seed);
+  RasterResultD r;
+  rasterize_forward(g, cam, s, r);
+  RasterGradsD gr;
+  rasterize_backward(g, cam, s, r, L.wc, L.wa, gr);
+  auto eval = [&] {
+    RasterResultD rr;
+    rasterize_forward(g, cam, s, rr);
+    return L(rr);
+  };
+  check_group("means", g.means, gr.means, eval);
+  check_group("log_scales", g.log_scales, gr.log_scales, eval);
+  check_group("quats", g.quats, gr.quats, eval);
+  check_group("opacity_logits", g.opacity_logits, gr.opacity_logits, eval);
+  check_group("sh", g.sh, gr.sh, eval);
+  // 2D means: shifting the principal point moves every means2d by the same amount without
+  // changing anything else (no Jacobian clamp active), so dL/dcx = sum_i dL/du_i.
+  for (int axis = 0; axis < 2; ++axis) {
+    double analytic = 0;
+    for (size_t i = 0; i < g.size(); ++i) analytic += gr.means2d[2 * i + axis];
+    Camera c2 = cam;
+    const double eps = 1e-6;
+    double& pp = axis == 0 ? c2.cx : c2.cy;
+    const double keep = pp;
+    pp = keep + eps;
+    RasterResultD a, b;
+    rasterize_forward(g, c2, s, a);
+    pp = keep - eps;
+    rasterize_forward(g, c2, s, b);
+    const double fd = (L(a) - L(b)) / (2 * eps);
+    EXPECT_NEAR(analytic, fd, 1e-6 + 1e-5 * std::abs(fd)) << "means2d axis " << axis;
+  }
+}
+
+// Few Gaussians well inside a 32x32 image, moderate opacities (no 0.99 clamp, no early stop).
+GaussiansD small_scene(int sh_degree, unsigned seed) {
+  SceneOptions o;
+  o.n = 5;
+  o.sh_degree = sh_degree;
+  o.spread = 0.12;
+  o.scale_min = 0.03, o.scale_max = 0.07;
+  o.opacity_min = 0.3, o.opacity_max = 0.8;
+  return GaussiansD::from(random_scene(o, seed));
+}
+
+TEST(RasterGrad, AllParametersSH0) {
+  RasterSettings s;
+  s.background[0] = 0.3f, s.background[1] = 0.6f, s.background[2] = 0.1f;
+  gradient_check(small_scene(0, 21), test_camera(32, 32, 0.45, 0.55), s, 7);
+}
+
+TEST(RasterGrad, AllParametersSH3) {
+  RasterSettings s;
+  s.background[2] = 1.0f;
+  gradient_check(small_scene(3, 22), test_camera(32, 32, 0.56, 0.41), s, 8);
+}
+
+// A Gaussian whose centre is beyond the Jacobian clamp (x/z limit) but reaches into the image:
+// the exact derivative of the clamped Jacobian is used.
+TEST(RasterGrad, ClampedJacobian) {
+  GaussiansD g;
+  g.sh_degree = 1;
+  g.means = {1.6, 0.02, 0.0, 0.02, -0.03, 0.05};
+  g.log_scales = {std::log(0.4),  std::log(0.15), std::log(0.1),
+                  std::log(0.04), std::log(0.05), std::log(0.03)};
+  g.quats = {0.9, 0.1, -0.2, 0.3, 0.8, -0.3, 0.1, 0.2};
+  g.opacity_logits = {0.5, -0.2};
+  g.sh = {1.0, 0.5, 0.2, 0.1,  -0.1, 0.05, 0.02, 0.1,  -0.05, 0.03, 0.0, 0.1,
+          0.3, 0.9, 0.4, -0.1, 0.1,  0.05, 0.02, -0.1, 0.05,  0.03, 0.1, 0.0};
+  const Camera cam = test_camera(32, 32, 0.5, 0.5);
+  RasterResultD r;
+  rasterize_forward(g, cam, {}, r);
+  ASSERT_GT(r.radii[0], 0);
+  ASSERT_GT(r.means2d[0], 1.15 * 32);  // clamp active
+  const Loss L = random_loss(32, 32, 3);
+  RasterGradsD gr;
+  rasterize_backward(g, cam, {}, r, L.wc, L.wa, gr);
+  auto eval = [&] {
+    RasterResultD rr;
+    rasterize_forward(g, cam, {}, rr);
+    return L(rr);
+  };
+  check_group("means", g.means, gr.means, eval);
+  check_group("log_scales", g.log_scales, gr.log_scales, eval);
+  check_group("quats", g.quats, gr.quats, eval);
+}
+
+// The float backward agrees with the double one (same code, different precision).
+TEST(RasterGrad, FloatMatchesDouble) {
+  SceneOptions o;
+  o.n = 40;
+  o.sh_degree = 2;
+  o.opacity_max = 0.9;
+  const Gaussians g = random_scene(o, 31);
+  const Camera cam = test_camera(48, 40);
+  RasterResult rf;
+  rasterize_forward(g, cam, {}, rf);
+  Image wc(48, 40, 3), wa(48, 40, 1);
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> U(-1, 1);
+  for (float& v : wc.data) v = U(rng);
+  for (float& v : wa.data) v = U(rng);
+  RasterGrads gf;
+  rasterize_backward(g, cam, {}, rf, wc, wa, gf);
+  const GaussiansD gd = GaussiansD::from(g);
+  RasterResultD rd;
+  rasterize_forward(gd, cam, {}, rd);
+  ImageD wcd(48, 40, 3), wad(48, 40, 1);
+  wcd.data.assign(wc.data.begin(), wc.data.end());
+  wad.data.assign(wa.data.begin(), wa.data.end());
+  RasterGradsD gdd;
+  rasterize_backward(gd, cam, {}, rd, wcd, wad, gdd);
+  auto cmp = [](const char* name, const std::vector<float>& a, const std::vector<double>& b) {
+    ASSERT_EQ(a.size(), b.size());
+    double num = 0, den = 0;
+    for (size_t i = 0; i < a.size(); ++i) num += (a[i] - b[i]) * (a[i] - b[i]), den += b[i] * b[i];
+    EXPECT_LT(std::sqrt(num / std::max(den, 1e-30)), 1e-3) << name;
+  };
+  cmp("means", gf.means, gdd.means);
+  cmp("log_scales", gf.log_scales, gdd.log_scales);
+  cmp("quats", gf.quats, gdd.quats);
+  cmp("opacity", gf.opacity_logits, gdd.opacity_logits);
+  cmp("sh", gf.sh, gdd.sh);
+  cmp("means2d", gf.means2d, gdd.means2d);
+}
+
+}  // namespace
+}  // namespace ks
