@@ -3,6 +3,10 @@
 // finite-difference tests) and on the buffer structs (which share member names).
 // Included only by rasterizer.cpp and raster_double.cpp.
 #include <omp.h>
+#include <time.h>
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 #include <Eigen/Core>
 #include <algorithm>
@@ -31,12 +35,20 @@ namespace ks::raster_detail {
 struct PhaseTimer {
   bool on = std::getenv("KS_RASTER_PROFILE") != nullptr;
   std::chrono::steady_clock::time_point t = std::chrono::steady_clock::now();
+  double cpu = cpu_now();
+  static double cpu_now() {
+    timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+  }
   void mark(const char* name) {
     if (!on) return;
     const auto now = std::chrono::steady_clock::now();
-    std::fprintf(stderr, "  %s %.2f ms\n", name,
-                 std::chrono::duration<double, std::milli>(now - t).count());
+    const double c = cpu_now();
+    std::fprintf(stderr, "  %s %.2f ms (master thread CPU %.2f ms)\n", name,
+                 std::chrono::duration<double, std::milli>(now - t).count(), c - cpu);
     t = now;
+    cpu = c;
   }
 };
 
@@ -100,6 +112,20 @@ struct Simd<float> {
     const I bits = (__builtin_convertvector(k, I) + 127) << 23;
     return p * (V)bits;
   }
+  // Number of set lanes of a comparison mask.
+  static int count(const I& m) {
+#if defined(__AVX__)
+    if constexpr (kCW == 8)
+      return __builtin_popcount(_mm256_movemask_ps(_mm256_castsi256_ps((__m256i)m)));
+#endif
+#if defined(__SSE2__)
+    if constexpr (kCW == 4)
+      return __builtin_popcount(_mm_movemask_ps(_mm_castsi128_ps((__m128i)m)));
+#endif
+    int n = 0;
+    for (int l = 0; l < kCW; ++l) n -= int(m[l]);
+    return n;
+  }
 };
 template <>
 struct Simd<double> {
@@ -110,7 +136,29 @@ struct Simd<double> {
     for (int l = 0; l < kCW; ++l) x[l] = std::exp(x[l]);
     return x;
   }
+  static int count(const I& m) {
+    int n = 0;
+    for (int l = 0; l < kCW; ++l) n -= int(m[l]);
+    return n;
+  }
 };
+
+// Chunk range [q0, q1] of tile row with offset dy (mean minus pixel centre) where
+// alpha = o exp(pw) >= 1/255 can hold, i.e. 0.5 a dx^2 + b dy dx + 0.5 c dy^2 <= L = ln(255 o),
+// intersected with [qlo, qhi]. Slightly permissive (L + 1e-3, half a pixel of margin is not
+// needed: the alpha test itself decides). False when the row misses the ellipse.
+template <class T>
+inline bool row_span(T mx, T a, T b, T c, T L, T dy, int qlo, int qhi, int& q0, int& q1) {
+  const T D = (b * b - a * c) * dy * dy + 2 * a * (L + T(1e-3));
+  if (!(D >= 0)) return false;
+  const T sq = std::sqrt(D);
+  const T xlo = mx - (sq - b * dy) / a, xhi = mx + (sq + b * dy) / a;
+  const T c0 = std::ceil(xlo - T(0.51)), c1 = std::floor(xhi - T(0.49));
+  if (c1 < 0 || c0 > T(kTS - 1)) return false;
+  q0 = std::max(qlo, int(std::max(c0, T(0))) / kCW);
+  q1 = std::min(qhi, int(std::min(c1, T(kTS - 1))) / kCW);
+  return q0 <= q1;
+}
 template <class V, class T>
 inline V vload(const T* p) {
   V v;
@@ -243,6 +291,7 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
   out.cov3d.resize(6 * N);
   out.sh_clamped.resize(3 * N);
   out.opacities.resize(N);
+  out.cutoffs.resize(N);
   out.rects.resize(4 * N);
   out.final_T.resize(size_t(W) * H);
   out.n_contrib.resize(size_t(W) * H);
@@ -308,6 +357,7 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
     out.conics[3 * i + 2] = A / det;
     out.depths[i] = z;
     out.opacities[i] = o;
+    out.cutoffs[i] = L;
     // Colour from SH, view direction = mean - camera centre.
     T basis[16];
     V3 dir = m - cam.centre;
@@ -390,21 +440,23 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
     using V = typename SV::V;
     using VI = typename SV::I;
     using SI = typename SV::S;
-    alignas(64) SI live[kTilePixels], last[kTilePixels];
+    // A pixel is finished (transmittance would fall below 1e-4, or outside the image) when its
+    // Tt is negative; |Tt| is its transmittance.
+    alignas(64) SI last[kTilePixels];
     int chunk_live[kChunks];  // live pixels per chunk of kCW pixels of a row
     int tile_live = 0;
     for (int q = 0; q < kChunks; ++q) chunk_live[q] = 0;
     for (int r = 0; r < kTS; ++r)
       for (int c = 0; c < kTS; ++c) {
         const int p = r * kTS + c;
-        Tt[p] = 1, C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
-        live[p] = (ox + c < W && oy + r < H) ? 1 : 0;
-        chunk_live[p / kCW] += live[p];
-        tile_live += live[p];
+        const bool in = ox + c < W && oy + r < H;
+        Tt[p] = in ? T(1) : T(-1), C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
+        chunk_live[p / kCW] += in;
+        tile_live += in;
       }
     const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
     alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
-        br[kBatch], bgc[kBatch], bbl[kBatch], bz[kBatch];
+        br[kBatch], bgc[kBatch], bbl[kBatch], bz[kBatch], bL[kBatch];
     int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
     for (uint32_t b0 = start; b0 < end && tile_live > 0; b0 += kBatch) {
       const int n = int(std::min<uint32_t>(kBatch, end - b0));
@@ -417,6 +469,7 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
         br[k] = out.colors[3 * id], bgc[k] = out.colors[3 * id + 1],
         bbl[k] = out.colors[3 * id + 2];
         bz[k] = out.depths[id];
+        bL[k] = out.cutoffs[id];
         const int* rc = &out.rects[4 * size_t(id)];
         bx0[k] = std::max(rc[0] - ox, 0) / kCW;
         bx1[k] = std::min(rc[1] - ox, kTS - 1) / kCW;
@@ -429,8 +482,10 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
         const int32_t idx1 = int32_t(b0 - start) + k + 1;
         for (int r = by0[k]; r <= by1[k]; ++r) {
           const T dy = bmy[k] - (T(r) + T(0.5));
+          int q0, q1;
+          if (!row_span(mx, a, b, c, bL[k], dy, bx0[k], bx1[k], q0, q1)) continue;
           const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
-          for (int q = bx0[k]; q <= bx1[k]; ++q) {
+          for (int q = q0; q <= q1; ++q) {
             const int cq = r * kCPR + q;
             if (chunk_live[cq] == 0) continue;
             const int p0 = cq * kCW;
@@ -439,8 +494,7 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
             const V og = o * SV::exp(pw);
             const V al = og < T(0.99) ? og : V{} + T(0.99);
             const V Tp = vload<V>(Tt + p0);
-            const VI lv = vload<VI>(live + p0);
-            const VI ok = (pw <= T(0)) & (al >= T(1.0f / 255.0f)) & (lv != 0);
+            const VI ok = (pw <= T(0)) & (al >= T(1.0f / 255.0f)) & (Tp > T(0));
             const V Tn = Tp * (T(1) - al);
             const VI term = ok & (Tn < T(1e-4));
             const VI con = ok & ~term;
@@ -449,11 +503,9 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
             vstore(C1 + p0, vload<V>(C1 + p0) + w * cg);
             vstore(C2 + p0, vload<V>(C2 + p0) + w * cb);
             vstore(Dp + p0, vload<V>(Dp + p0) + w * zz);
-            vstore(Tt + p0, con ? Tn : Tp);
-            vstore(live + p0, lv & ~term);
+            vstore(Tt + p0, con ? Tn : (term ? -Tp : Tp));
             vstore(last + p0, (con & SI(idx1)) | (~con & vload<VI>(last + p0)));
-            int nterm = 0;
-            for (int l = 0; l < kCW; ++l) nterm -= int(term[l]);
+            const int nterm = SV::count(term);
             if (nterm) {
               chunk_live[cq] -= nterm;
               tile_live -= nterm;
@@ -466,12 +518,13 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
       for (int c = 0; c < kTS && ox + c < W; ++c) {
         const int p = r * kTS + c;
         const size_t pix = size_t(oy + r) * W + ox + c;
-        out.color.data[3 * pix] = C0[p] + Tt[p] * bg[0];
-        out.color.data[3 * pix + 1] = C1[p] + Tt[p] * bg[1];
-        out.color.data[3 * pix + 2] = C2[p] + Tt[p] * bg[2];
-        out.alpha.data[pix] = 1 - Tt[p];
+        const T Tf = std::abs(Tt[p]);
+        out.color.data[3 * pix] = C0[p] + Tf * bg[0];
+        out.color.data[3 * pix + 1] = C1[p] + Tf * bg[1];
+        out.color.data[3 * pix + 2] = C2[p] + Tf * bg[2];
+        out.alpha.data[pix] = 1 - Tf;
         out.depth.data[pix] = Dp[p];
-        out.final_T[pix] = Tt[p];
+        out.final_T[pix] = Tf;
         out.n_contrib[pix] = uint32_t(last[p]);
       }
   }
@@ -551,7 +604,7 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
           jmax = std::max(jmax, int(last[p]));
         }
       alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
-          br[kBatch], bgc[kBatch], bbl[kBatch];
+          br[kBatch], bgc[kBatch], bbl[kBatch], bL[kBatch];
       int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
       uint32_t bid[kBatch];
       for (int hi = jmax; hi > 0; hi -= kBatch) {
@@ -567,6 +620,7 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
           bo[k] = fwd.opacities[id];
           br[k] = fwd.colors[3 * id], bgc[k] = fwd.colors[3 * id + 1];
           bbl[k] = fwd.colors[3 * id + 2];
+          bL[k] = fwd.cutoffs[id];
           const int* rc = &fwd.rects[4 * size_t(id)];
           bx0[k] = std::max(rc[0] - ox, 0) / kCW;
           bx1[k] = std::min(rc[1] - ox, kTS - 1) / kCW;
@@ -581,8 +635,10 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
           for (int r = by0[k]; r <= by1[k]; ++r) {
             // Same expressions as the forward pass, so the skip decisions agree bit for bit.
             const T dy = bmy[k] - (T(r) + T(0.5));
+            int q0, q1;
+            if (!row_span(mx, a, b, c, bL[k], dy, bx0[k], bx1[k], q0, q1)) continue;
             const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
-            for (int q = bx0[k]; q <= bx1[k]; ++q) {
+            for (int q = q0; q <= q1; ++q) {
               const int cq = r * kCPR + q;
               if (chunk_max[cq] <= j) continue;
               const int p0 = cq * kCW;
