@@ -143,22 +143,6 @@ struct Simd<double> {
   }
 };
 
-// Chunk range [q0, q1] of tile row with offset dy (mean minus pixel centre) where
-// alpha = o exp(pw) >= 1/255 can hold, i.e. 0.5 a dx^2 + b dy dx + 0.5 c dy^2 <= L = ln(255 o),
-// intersected with [qlo, qhi]. Slightly permissive (L + 1e-3, half a pixel of margin is not
-// needed: the alpha test itself decides). False when the row misses the ellipse.
-template <class T>
-inline bool row_span(T mx, T a, T b, T c, T L, T dy, int qlo, int qhi, int& q0, int& q1) {
-  const T D = (b * b - a * c) * dy * dy + 2 * a * (L + T(1e-3));
-  if (!(D >= 0)) return false;
-  const T sq = std::sqrt(D);
-  const T xlo = mx - (sq - b * dy) / a, xhi = mx + (sq + b * dy) / a;
-  const T c0 = std::ceil(xlo - T(0.51)), c1 = std::floor(xhi - T(0.49));
-  if (c1 < 0 || c0 > T(kTS - 1)) return false;
-  q0 = std::max(qlo, int(std::max(c0, T(0))) / kCW);
-  q1 = std::min(qhi, int(std::min(c1, T(kTS - 1))) / kCW);
-  return q0 <= q1;
-}
 template <class V, class T>
 inline V vload(const T* p) {
   V v;
@@ -291,7 +275,6 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
   out.cov3d.resize(6 * N);
   out.sh_clamped.resize(3 * N);
   out.opacities.resize(N);
-  out.cutoffs.resize(N);
   out.rects.resize(4 * N);
   out.final_T.resize(size_t(W) * H);
   out.n_contrib.resize(size_t(W) * H);
@@ -357,7 +340,6 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
     out.conics[3 * i + 2] = A / det;
     out.depths[i] = z;
     out.opacities[i] = o;
-    out.cutoffs[i] = L;
     // Colour from SH, view direction = mean - camera centre.
     T basis[16];
     V3 dir = m - cam.centre;
@@ -456,7 +438,7 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
       }
     const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
     alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
-        br[kBatch], bgc[kBatch], bbl[kBatch], bz[kBatch], bL[kBatch];
+        br[kBatch], bgc[kBatch], bbl[kBatch], bz[kBatch];
     int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
     for (uint32_t b0 = start; b0 < end && tile_live > 0; b0 += kBatch) {
       const int n = int(std::min<uint32_t>(kBatch, end - b0));
@@ -469,7 +451,6 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
         br[k] = out.colors[3 * id], bgc[k] = out.colors[3 * id + 1],
         bbl[k] = out.colors[3 * id + 2];
         bz[k] = out.depths[id];
-        bL[k] = out.cutoffs[id];
         const int* rc = &out.rects[4 * size_t(id)];
         bx0[k] = std::max(rc[0] - ox, 0) / kCW;
         bx1[k] = std::min(rc[1] - ox, kTS - 1) / kCW;
@@ -482,8 +463,7 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
         const int32_t idx1 = int32_t(b0 - start) + k + 1;
         for (int r = by0[k]; r <= by1[k]; ++r) {
           const T dy = bmy[k] - (T(r) + T(0.5));
-          int q0, q1;
-          if (!row_span(mx, a, b, c, bL[k], dy, bx0[k], bx1[k], q0, q1)) continue;
+          const int q0 = bx0[k], q1 = bx1[k];
           const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
           for (int q = q0; q <= q1; ++q) {
             const int cq = r * kCPR + q;
@@ -604,7 +584,7 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
           jmax = std::max(jmax, int(last[p]));
         }
       alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
-          br[kBatch], bgc[kBatch], bbl[kBatch], bL[kBatch];
+          br[kBatch], bgc[kBatch], bbl[kBatch];
       int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
       uint32_t bid[kBatch];
       for (int hi = jmax; hi > 0; hi -= kBatch) {
@@ -620,7 +600,6 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
           bo[k] = fwd.opacities[id];
           br[k] = fwd.colors[3 * id], bgc[k] = fwd.colors[3 * id + 1];
           bbl[k] = fwd.colors[3 * id + 2];
-          bL[k] = fwd.cutoffs[id];
           const int* rc = &fwd.rects[4 * size_t(id)];
           bx0[k] = std::max(rc[0] - ox, 0) / kCW;
           bx1[k] = std::min(rc[1] - ox, kTS - 1) / kCW;
@@ -635,8 +614,7 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
           for (int r = by0[k]; r <= by1[k]; ++r) {
             // Same expressions as the forward pass, so the skip decisions agree bit for bit.
             const T dy = bmy[k] - (T(r) + T(0.5));
-            int q0, q1;
-            if (!row_span(mx, a, b, c, bL[k], dy, bx0[k], bx1[k], q0, q1)) continue;
+            const int q0 = bx0[k], q1 = bx1[k];
             const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
             for (int q = q0; q <= q1; ++q) {
               const int cq = r * kCPR + q;

@@ -35,7 +35,6 @@ struct RasterResult {
   std::vector<float> cov3d;           // 6N (xx, xy, xz, yy, yz, zz)
   std::vector<uint8_t> sh_clamped;    // 3N
   std::vector<float> opacities;       // N activated opacity
-  std::vector<float> cutoffs;         // N ln(255 opacity): alpha >= 1/255 iff power >= -cutoff
   std::vector<int> rects;             // 4N pixel bounding box x0, x1, y0, y1 (inclusive)
   std::vector<uint32_t> point_list;   // sorted Gaussian ids, tile-major then depth
   std::vector<uint32_t> tile_ranges;  // 2 * tiles: [start, end) into point_list
