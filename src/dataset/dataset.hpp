@@ -1,6 +1,7 @@
 #pragma once
 // The dataset that generate, augment and reconstruct share (and that a user's own capture
 // provides): DIR/dataset.json + PNG images and masks. Format documented in docs/formats.md.
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <vector>
 
@@ -9,6 +10,9 @@
 #include "core/image.hpp"
 
 namespace ks {
+
+inline constexpr int kDatasetVersionMajor = 1;
+inline constexpr int kDatasetVersionMinor = 0;
 
 struct DatasetFrame {
   std::string image;  // path relative to the dataset directory
@@ -26,10 +30,21 @@ struct Dataset {
   // Reads DIR/dataset.json; checks every frame (files exist, pose lengths, cameras).
   // Throws ks::Error naming the frame and the problem.
   static Dataset load(const std::string& dir);
+  // Parses a dataset.json document; `dir` is used to check that the frames' files exist
+  // (empty `dir`: no file checks). `source` names the document in error messages.
+  static Dataset from_json(const nlohmann::json& j, const std::string& dir,
+                           const std::string& source = "dataset.json");
+  nlohmann::json to_json() const;
   // Writes DIR/dataset.json (atomically). Images are written by the caller.
   void save(const std::string& dir) const;
   Image load_image(const std::string& dir, size_t i) const;  // RGB
   Image load_mask(const std::string& dir, size_t i) const;   // 1 channel; all ones if no mask
+
+  // Frame i's full body parameters: its pose plus the dataset's betas.
+  BodyParams params(size_t i) const;
+  // The body model argument for load_body_model(): "default", or the path resolved against
+  // the dataset directory when it is relative.
+  std::string body_model_path(const std::string& dir) const;
 };
 
 }  // namespace ks

@@ -1,5 +1,9 @@
 #pragma once
 // Motions: sequences of body poses for SMPL's 24-joint skeleton (the default model's too).
+// Joint rotations are axis-angles relative to the parent joint, in the SMPL rest pose's frame
+// (world: Y up, the body faces +Z, its left is +X; the rest pose is a T-pose with arms along
+// +-X). Every built-in motion is a smooth function of normalised time, sampled at `frames`
+// points, so any length gives the same movement (fps is scaled to keep its duration).
 #include <string>
 #include <vector>
 
@@ -26,5 +30,43 @@ const std::vector<MotionInfo>& builtin_motions();
 Motion builtin_motion(const std::string& name, int frames = 0);
 // A built-in name, or a file (AMASS .npz; see docs/formats.md).
 Motion load_motion(const std::string& name_or_path, int frames = 0);
+
+// A natural standing pose: the rest T-pose with the arms lowered `arm_down_degrees` from the
+// horizontal (A-pose), elbows slightly bent, facing +Z. 69 body_pose values.
+BodyParams standing_pose(double arm_down_degrees = 62.0);
+
+// Body pose vector of a motion for a model with `num_body_pose_joints` joints driven by
+// body_pose (23 for SMPL / default, 21 for SMPL-H / SMPL-X): truncates or zero-pads.
+void adapt_body_pose(BodyParams& params, int num_body_pose_joints);
+
+// Indices into SMPL's 24 joints (0 = pelvis, the root; body_pose holds joints 1..23).
+namespace smpl_joint {
+enum : int {
+  kPelvis = 0,
+  kLeftHip = 1,
+  kRightHip = 2,
+  kSpine1 = 3,
+  kLeftKnee = 4,
+  kRightKnee = 5,
+  kSpine2 = 6,
+  kLeftAnkle = 7,
+  kRightAnkle = 8,
+  kSpine3 = 9,
+  kLeftFoot = 10,
+  kRightFoot = 11,
+  kNeck = 12,
+  kLeftCollar = 13,
+  kRightCollar = 14,
+  kHead = 15,
+  kLeftShoulder = 16,
+  kRightShoulder = 17,
+  kLeftElbow = 18,
+  kRightElbow = 19,
+  kLeftWrist = 20,
+  kRightWrist = 21,
+  kLeftHand = 22,
+  kRightHand = 23
+};
+}  // namespace smpl_joint
 
 }  // namespace ks
