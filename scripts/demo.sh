@@ -26,6 +26,33 @@ step() { echo; echo "== demo [$(( $(stamp) - T0 ))s] $*"; }
 AVATAR="$OUT/avatar.ksavatar"
 SUBJECT="$OUT/subject"
 
+# 0. The open default body model, posed in a couple of poses (OBJ, vertices in model order).
+if has body; then
+  BODY="$OUT/body"
+  mkdir -p "$BODY"
+  step "body: default model -> $BODY (rest, walk, wave)"
+  "$KS" body make-default --out "$BODY/default_body.npz"
+  "$KS" body info default > "$BODY/default_body_info.json"
+  "$KS" body pose default --out "$BODY/rest.obj" --joints "$BODY/rest_joints.json"
+  # body_pose: 3 values per joint 1..23 (left_hip, right_hip, spine1, left_knee, ...).
+  cat > "$BODY/pose_walk.json" <<'JSON'
+{"betas": [0.5, 0.3], "global_orient": [0.0, 0.3, 0.0],
+ "body_pose": [-0.5,0,0, 0.4,0,0, 0,0,0,  0.6,0,0, 0.3,0,0, 0,0,0,  0,0,0, 0,0,0, 0,0,0,
+               0,0,0, 0,0,0, 0,0,0,  0,0,0, 0,0,0, 0,0,0,  0,0,-1.1, 0,0,1.1, 0,-0.6,0,
+               0,0.6,0, 0,0,0, 0,0,0,  0,0,0, 0,0,0]}
+JSON
+  "$KS" body pose default --params "$BODY/pose_walk.json" --out "$BODY/walk.obj"
+  cat > "$BODY/pose_wave.json" <<'JSON'
+{"betas": [-0.5, 1.0, 0, 0, 0, 0, 0.5],
+ "body_pose": [0,0,0.2, 0,0,-0.2, 0,0,0,  0,0,0, 0,0,0, 0,0,0,  0,0,0, 0,0,0, 0,0,0,
+               0,0,0, 0,0,0, 0,0,0,  0,0,0, 0,0,0, 0,0.5,0,  0,0,0.9, 0,0,0, 0,-1.2,0,
+               0,0,0, 0,0,0, 0,0,0,  0,0,0, 0,0,0]}
+JSON
+  "$KS" body pose default --params "$BODY/pose_wave.json" --out "$BODY/wave_subdiv1.obj" --subdivide 1
+else
+  echo "demo: skipping body (not in this build)"
+fi
+
 # 1. A synthetic clothed person with exact ground truth (train/ and test/ datasets).
 if has synth; then
   step "synth --seed 0 -> $SUBJECT"
@@ -70,7 +97,7 @@ fi
 
 echo
 echo "== demo done in $(( $(stamp) - T0 ))s. Results in $OUT/:"
-for f in "$SUBJECT" "$AVATAR" "$OUT/metrics.json" "$OUT/eval" "$OUT/turntable.mp4" "$OUT/turntable" \
+for f in "$OUT/body" "$SUBJECT" "$AVATAR" "$OUT/metrics.json" "$OUT/eval" "$OUT/turntable.mp4" "$OUT/turntable" \
          "$OUT/$MOTION.mp4" "$OUT/$MOTION" "$OUT/avatar.ply"; do
   [ -e "$f" ] && echo "  $f"
 done
