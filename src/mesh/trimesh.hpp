@@ -3,6 +3,8 @@
 // faces rows of F (M x 3, counter-clockwise seen from outside, so normals point out).
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <string>
+#include <utility>
 #include <vector>
 
 namespace ks {
