@@ -19,6 +19,13 @@ namespace ks {
 
 // ------------------------------------------------------------------------------------ RNG
 
+SynthRng::SynthRng(uint64_t seed) {
+  uint64_t z = seed ^ 0x5851F42D4C957F2DULL;
+  z = (z ^ (z >> 33)) * 0xFF51AFD7ED558CCDULL;
+  z = (z ^ (z >> 33)) * 0xC4CEB9FE1A85EC53ULL;
+  state_ = z ^ (z >> 33);
+}
+
 uint64_t SynthRng::next() {
   uint64_t z = (state_ += 0x9E3779B97F4A7C15ULL);
   z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
@@ -115,12 +122,15 @@ SynthAppearance random_appearance(SynthRng& rng) {
   a.top_kind = rng.uniform() < 0.6 ? "t-shirt" : "long-sleeve";
   const double pr = rng.uniform();
   a.pattern = pr < 0.45 ? "stripes" : (pr < 0.8 ? "checks" : "plain");
-  a.bottom_kind = rng.uniform() < 0.7 ? "trousers" : "shorts";
+  const double br = rng.uniform();
+  a.bottom_kind = br < 0.5 ? "trousers" : (br < 0.75 ? "shorts" : "skirt");
   a.hair_kind = rng.uniform() < 0.5 ? "short" : "long";
   a.top_looseness = rng.uniform(0.010, 0.022);
   a.bottom_looseness = rng.uniform(0.006, 0.014);
   a.hair_volume = rng.uniform(0.015, 0.032);
   a.pattern_period = rng.uniform(0.04, 0.07);
+  a.dress = a.bottom_kind == "skirt" && rng.uniform() < 0.5;
+  a.skirt_flare = rng.uniform(0.03, 0.09);
   return a;
 }
 
@@ -188,6 +198,21 @@ bool is_leg(int label) {
   return label >= kLeftUpperLeg && label <= kRightFoot;
 }
 
+// The shirt's (or dress's) pattern colour at a rest-pose point; `coord` runs across stripes.
+Vec3 pattern_colour(const SynthAppearance& a, const Vec3& p, double coord) {
+  const double P = a.pattern_period;
+  bool accent = false;
+  if (a.pattern == "stripes") {
+    const double f = coord / P - std::floor(coord / P);
+    accent = f < 0.5;
+  } else if (a.pattern == "checks") {
+    const long c =
+        long(std::floor(p.x() / P)) + long(std::floor(p.y() / P)) + long(std::floor(p.z() / P));
+    accent = (c % 2 + 2) % 2 == 1;
+  }
+  return accent ? a.top_accent : a.top;
+}
+
 // Colour and outward displacement of one rest-pose surface point.
 void shade_point(const SynthAppearance& a, const Landmarks& L, const Vec3& p, const Vec3& n,
                  int label, Vec3& colour, double& disp) {
@@ -204,14 +229,20 @@ void shade_point(const SynthAppearance& a, const Landmarks& L, const Vec3& p, co
   const double knee_y = 0.5 * (L.J(4, 1) + L.J(5, 1));
   const bool leg_like = label == kHips || (is_leg(label) && label < kLeftFoot);
   if (leg_like && p.y() < waist_y) {
-    const double hem = a.bottom_kind == "trousers" ? ankle_y + 0.035 * s : knee_y + 0.1 * s;
+    const double hem = a.bottom_kind == "trousers"
+                           ? ankle_y + 0.035 * s
+                           : (a.bottom_kind == "shorts" ? knee_y + 0.1 * s : knee_y + 0.09 * s);
     if (p.y() > hem) {
       colour = a.bottom;
+      // Under a skirt: the skirt's own colour, so that nothing of another colour shows where
+      // the body comes close to it.
+      if (a.bottom_kind == "skirt" && a.dress) colour = pattern_colour(a, p, p.y() - pelvis.y());
       disp = a.bottom_looseness;
       // Back pockets.
       const double hip_y = 0.5 * (L.J(1, 1) + L.J(2, 1));
-      if (p.z() < pelvis.z() - 0.03 && n.z() < -0.4 && p.y() > hip_y - 0.09 * s &&
-          p.y() < hip_y + 0.01 * s && std::abs(x) > 0.035 * s && std::abs(x) < 0.12 * s)
+      if (a.bottom_kind != "skirt" && p.z() < pelvis.z() - 0.03 && n.z() < -0.4 &&
+          p.y() > hip_y - 0.09 * s && p.y() < hip_y + 0.01 * s && std::abs(x) > 0.035 * s &&
+          std::abs(x) < 0.12 * s)
         colour = 0.72 * a.bottom;
     } else if (a.bottom_kind == "shorts" && p.y() < ankle_y + 0.09 * s) {
       colour = Vec3(0.95, 0.95, 0.93);  // socks
@@ -245,18 +276,8 @@ void shade_point(const SynthAppearance& a, const Landmarks& L, const Vec3& p, co
       const double edge = std::abs(x) < 0.075 * s ? smoothstep(0.0, 0.012 * s, -over) : 1.0;
       disp = a.top_looseness * sleeve_taper * (0.35 + 0.65 * edge) *
              (1.0 + 0.4 * smoothstep(L.J(3, 1), hem_y, p.y()));
-      const double P = a.pattern_period;
-      bool accent = false;
-      if (a.pattern == "stripes") {
-        const double coord = is_arm(label) ? arm_coordinate(L, p, left) * 0.26 : p.y() - pelvis.y();
-        const double f = coord / P - std::floor(coord / P);
-        accent = f < 0.5;
-      } else if (a.pattern == "checks") {
-        const long c =
-            long(std::floor(p.x() / P)) + long(std::floor(p.y() / P)) + long(std::floor(p.z() / P));
-        accent = (c % 2 + 2) % 2 == 1;
-      }
-      colour = accent ? a.top_accent : a.top;
+      const double coord = is_arm(label) ? arm_coordinate(L, p, left) * 0.26 : p.y() - pelvis.y();
+      colour = pattern_colour(a, p, coord);
       // Chest emblem (front, on the body's left): front and back differ.
       if (label == kTorso && n.z() > 0.45) {
         const double ex = x - 0.075 * s, ey = p.y() - (L.J(9, 1) + 0.075 * s);
@@ -318,6 +339,101 @@ void shade_point(const SynthAppearance& a, const Landmarks& L, const Vec3& p, co
   }
 }
 
+// A skirt: a flared tube from the waist to above the knees around both legs, drawn from both
+// sides, skinned to the pelvis and hips (more to the hips towards the hem). Appended to P.
+void add_skirt(SynthPerson& P, const Landmarks& L, const Eigen::MatrixXd& V0) {
+  const SynthAppearance& a = P.appearance;
+  const double s = L.s;
+  const Vec3 pelvis = L.j(0);
+  const double knee_y = 0.5 * (L.J(4, 1) + L.J(5, 1));
+  const double top_y = pelvis.y() + 0.0 * s, hem_y = knee_y + 0.07 * s;
+  const int K = 60, M = 160;
+  // Cross-section of the hips and thighs at each ring height.
+  std::vector<double> ra(K + 1), rb(K + 1), cz(K + 1), ys(K + 1);
+  for (int k = 0; k <= K; ++k) {
+    const double y = top_y + (hem_y - top_y) * k / K;
+    double xmax = 0.05, zmin = 1e9, zmax = -1e9;
+    for (long i = 0; i < V0.rows(); ++i) {
+      const int l = P.labels[size_t(i)];
+      if (l != kHips && l != kTorso && l != kLeftUpperLeg && l != kRightUpperLeg) continue;
+      if (std::abs(V0(i, 1) - y) > 0.015) continue;
+      xmax = std::max(xmax, std::abs(V0(i, 0) - pelvis.x()));
+      zmin = std::min(zmin, V0(i, 2));
+      zmax = std::max(zmax, V0(i, 2));
+    }
+    if (zmin > zmax) {
+      zmin = pelvis.z() - 0.1;
+      zmax = pelvis.z() + 0.1;
+    }
+    const double t = double(k) / K;
+    ys[k] = y;
+    const double margin = a.bottom_looseness + 0.008;
+    ra[k] = xmax + margin + a.skirt_flare * t * t;
+    rb[k] = 0.5 * (zmax - zmin) + margin + 0.8 * a.skirt_flare * t * t;
+    cz[k] = 0.5 * (zmin + zmax);
+    if (k > 0) {  // a skirt hangs: never narrower below
+      ra[k] = std::max(ra[k], ra[k - 1]);
+      rb[k] = std::max(rb[k], rb[k - 1]);
+    }
+  }
+  const long base = P.rest.rows();
+  const long nv = long(K + 1) * M;
+  Eigen::MatrixXd V(nv, 3), C(nv, 3);
+  Eigen::MatrixXi SJ(nv, 4);
+  Eigen::MatrixXd SW(nv, 4);
+  for (int k = 0; k <= K; ++k) {
+    const double t = double(k) / K;
+    for (int i = 0; i < M; ++i) {
+      const double phi = 2 * M_PI * i / M;
+      const Vec3 p(pelvis.x() + ra[k] * std::sin(phi), ys[k], cz[k] + rb[k] * std::cos(phi));
+      const long v = long(k) * M + i;
+      V.row(v) = p.transpose();
+      Vec3 c = a.dress ? pattern_colour(a, p, p.y() - pelvis.y()) : a.bottom;
+      if (k >= K - 1) c = a.dress ? a.top_accent : 0.7 * a.bottom;  // hem band
+      C.row(v) = c.transpose();
+      const double side = smoothstep(-0.6, 0.6, std::sin(phi));  // 1 = body's left (+X)
+      const double leg = 0.75 * smoothstep(0.0, 1.0, t);
+      SJ.row(v) << 0, 1, 2, 3;
+      SW.row(v) << 1.0 - leg, leg * side, leg * (1.0 - side), 0.0;
+    }
+  }
+  // Faces: outward (counter-clockwise seen from outside) plus the reversed inner side.
+  std::vector<Eigen::Vector3i> tris;
+  for (int k = 0; k < K; ++k)
+    for (int i = 0; i < M; ++i) {
+      const int a0 = k * M + i, a1 = k * M + (i + 1) % M;
+      const int b0 = (k + 1) * M + i, b1 = (k + 1) * M + (i + 1) % M;
+      tris.emplace_back(a0, b0, b1);
+      tris.emplace_back(a0, b1, a1);
+    }
+  // Orient: the first face's normal must point away from the axis.
+  {
+    const Eigen::Vector3i f = tris[0];
+    const Vec3 p0 = V.row(f[0]), p1 = V.row(f[1]), p2 = V.row(f[2]);
+    const Vec3 n = (p1 - p0).cross(p2 - p0);
+    const Vec3 out(p0.x() - pelvis.x(), 0.0, p0.z() - cz[0]);
+    if (n.dot(out) < 0)
+      for (auto& t : tris) std::swap(t[1], t[2]);
+  }
+  const long nf = long(tris.size());
+  const long fbase = P.faces.rows();
+  P.faces.conservativeResize(fbase + 2 * nf, 3);
+  for (long f = 0; f < nf; ++f) {
+    const Eigen::Vector3i t = tris[size_t(f)].array() + int(base);
+    P.faces.row(fbase + f) << t[0], t[1], t[2];
+    P.faces.row(fbase + nf + f) << t[0], t[2], t[1];
+  }
+  P.rest.conservativeResize(base + nv, 3);
+  P.rest.bottomRows(nv) = V;
+  P.colors.conservativeResize(base + nv, 3);
+  P.colors.bottomRows(nv) = C;
+  P.skin_joints.conservativeResize(base + nv, 4);
+  P.skin_joints.bottomRows(nv) = SJ;
+  P.skin_weights.conservativeResize(base + nv, 4);
+  P.skin_weights.bottomRows(nv) = SW;
+  P.labels.resize(size_t(base + nv), kHips);
+}
+
 void top4_weights(const Eigen::MatrixXd& W, Eigen::MatrixXi& joints, Eigen::MatrixXd& weights) {
   const long N = W.rows();
   joints.resize(N, 4);
@@ -355,8 +471,11 @@ nlohmann::json SynthAppearance::to_json() const {
               {"emblem", rgb_json(emblem)},
               {"pattern_period_m", pattern_period},
               {"looseness_m", top_looseness}};
-  j["bottom"] = {
-      {"kind", bottom_kind}, {"colour", rgb_json(bottom)}, {"looseness_m", bottom_looseness}};
+  j["bottom"] = {{"kind", bottom_kind},
+                 {"colour", rgb_json(bottom)},
+                 {"looseness_m", bottom_looseness},
+                 {"dress", dress},
+                 {"skirt_flare_m", skirt_flare}};
   j["shoes"] = {{"colour", rgb_json(shoes)}, {"sole", rgb_json(sole)}};
   j["eyes"] = rgb_json(iris);
   j["lips"] = rgb_json(lips);
@@ -418,6 +537,8 @@ SynthPerson make_synth_person(std::shared_ptr<const BodyModel> model, const std:
     P.colors.row(i) = c.transpose();
     P.rest.row(i) = (p + d * n).transpose();
   }
+
+  if (P.appearance.bottom_kind == "skirt") add_skirt(P, L, V0);
 
   // BODY_25 sources.
   P.kp_joint.fill(-1);
@@ -516,7 +637,7 @@ PosedPerson pose_synth_person(const SynthPerson& person, const BodyParams& pose)
       if (w != 0.0) M += w * st.transforms[size_t(person.skin_joints(i, k))].topRows<3>();
     }
     Vec3 x = person.rest.row(i).transpose();
-    if (correctives) x += offsets.row(i).transpose();
+    if (correctives && i < offsets.rows()) x += offsets.row(i).transpose();
     out.vertices.row(i) = (M.leftCols<3>() * x + M.col(3)).transpose();
   }
   return out;

@@ -22,7 +22,8 @@ namespace ks {
 // Deterministic RNG (SplitMix64) with its own distributions, identical on every platform.
 class SynthRng {
  public:
-  explicit SynthRng(uint64_t seed) : state_(seed * 0x9E3779B97F4A7C15ULL + 0x632BE59BD9B4E019ULL) {}
+  // The seed is hashed so that nearby seeds start far apart in the generator's sequence.
+  explicit SynthRng(uint64_t seed);
   uint64_t next();
   double uniform();                    // [0, 1)
   double uniform(double a, double b);  // [a, b)
@@ -37,7 +38,9 @@ struct SynthAppearance {
   Eigen::Vector3d skin, hair, top, top_accent, emblem, bottom, shoes, sole, iris, lips;
   std::string top_kind;          // "t-shirt" or "long-sleeve"
   std::string pattern;           // "stripes", "checks" or "plain"
-  std::string bottom_kind;       // "trousers" or "shorts"
+  std::string bottom_kind;       // "trousers", "shorts" or "skirt"
+  bool dress = false;            // the skirt continues the top's colours (a dress)
+  double skirt_flare = 0.06;     // metres added to the skirt's radius at the hem
   std::string hair_kind;         // "short" or "long"
   double top_looseness = 0.015;  // metres off the skin
   double bottom_looseness = 0.01;
@@ -65,7 +68,8 @@ struct SynthPerson {
   Eigen::MatrixXi faces;
   Eigen::MatrixXd colors;   // N x 3 albedo
   std::vector<int> labels;  // N body-part labels (ks::Part)
-  // Body mesh -> person mesh stencil (carries the model's pose correctives).
+  // Body mesh -> person mesh stencil (carries the model's pose correctives); its rows are the
+  // first vertices of the person (a skirt's vertices follow them).
   Eigen::SparseMatrix<double, Eigen::RowMajor> stencil;
   // Skin weights, top 4 joints per vertex (weights sum to 1).
   Eigen::MatrixXi skin_joints;   // N x 4
