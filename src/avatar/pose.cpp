@@ -242,3 +242,21 @@ std::vector<float> skin_points(const Avatar& a, const std::vector<Eigen::Matrix4
 }
 
 }  // namespace ks
+
+namespace ks {
+
+BodyParams avatar_params_from_json(const Avatar& avatar, const nlohmann::json& j) {
+  BodyModel m;  // only the kind and counts are consulted by from_json
+  const std::string& k = avatar.body_kind;
+  m.kind = k == "smpl"    ? BodyKind::kSMPL
+           : k == "smplh" ? BodyKind::kSMPLH
+           : k == "smplx" ? BodyKind::kSMPLX
+                          : BodyKind::kDefault;
+  m.num_betas = int(std::max<Eigen::Index>(avatar.betas.size(), 300));
+  m.num_expression = m.kind == BodyKind::kSMPLX ? 100 : 0;
+  m.parents = avatar.parents;
+  m.joint_names = avatar.joint_names;
+  return BodyParams::from_json(j, m);
+}
+
+}  // namespace ks

@@ -4,6 +4,7 @@
 // avatar stores them, then linear blend skinning of the Gaussians' means and rotations.
 #include <Eigen/Core>
 #include <Eigen/StdVector>
+#include <nlohmann/json.hpp>
 #include <vector>
 
 #include "avatar/avatar.hpp"
@@ -39,5 +40,13 @@ std::vector<float> skin_points(const Avatar& avatar, const std::vector<Eigen::Ma
 // Quaternion (w, x, y, z) of the rotation nearest to a 3x3 matrix that is close to a rotation
 // (Shepperd's method on the matrix, then normalised). Used for blended LBS matrices.
 void matrix_to_quat(const float m[9], float q[4]);
+
+}  // namespace ks
+
+namespace ks {
+
+// Pose parameters from the PARAMS.json layout (BodyParams::from_json) checked against the
+// avatar's skeleton kind (no body-model file needed).
+BodyParams avatar_params_from_json(const Avatar& avatar, const nlohmann::json& j);
 
 }  // namespace ks

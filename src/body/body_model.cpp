@@ -12,11 +12,10 @@ namespace ks {
 namespace {
 
 const std::vector<std::string> kSmplBody22 = {
-    "pelvis",         "left_hip",       "right_hip",     "spine1",      "left_knee",
-    "right_knee",     "spine2",         "left_ankle",    "right_ankle", "spine3",
-    "left_foot",      "right_foot",     "neck",          "left_collar", "right_collar",
-    "head",           "left_shoulder",  "right_shoulder", "left_elbow", "right_elbow",
-    "left_wrist",     "right_wrist"};
+    "pelvis",     "left_hip",    "right_hip",    "spine1",     "left_knee",     "right_knee",
+    "spine2",     "left_ankle",  "right_ankle",  "spine3",     "left_foot",     "right_foot",
+    "neck",       "left_collar", "right_collar", "head",       "left_shoulder", "right_shoulder",
+    "left_elbow", "right_elbow", "left_wrist",   "right_wrist"};
 
 std::vector<std::string> hand_names(const std::string& side) {
   std::vector<std::string> n;
@@ -44,11 +43,10 @@ std::vector<std::string> make_names(BodyKind kind) {
 
 // SMPL's 24 joints -> part.
 constexpr Part kSmplJointPart[24] = {
-    kHips,          kLeftUpperLeg,  kRightUpperLeg, kTorso,         kLeftLowerLeg,
-    kRightLowerLeg, kTorso,         kLeftFoot,      kRightFoot,     kTorso,
-    kLeftFoot,      kRightFoot,     kHeadNeck,      kTorso,         kTorso,
-    kHeadNeck,      kLeftUpperArm,  kRightUpperArm, kLeftLowerArm,  kRightLowerArm,
-    kLeftHand,      kRightHand,     kLeftHand,      kRightHand};
+    kHips,         kLeftUpperLeg,  kRightUpperLeg, kTorso,     kLeftLowerLeg, kRightLowerLeg,
+    kTorso,        kLeftFoot,      kRightFoot,     kTorso,     kLeftFoot,     kRightFoot,
+    kHeadNeck,     kTorso,         kTorso,         kHeadNeck,  kLeftUpperArm, kRightUpperArm,
+    kLeftLowerArm, kRightLowerArm, kLeftHand,      kRightHand, kLeftHand,     kRightHand};
 
 BodyKind kind_from_joints(int J, const std::string& path) {
   switch (J) {
@@ -121,8 +119,8 @@ const std::vector<std::string>& body_joint_names(BodyKind kind) {
 }
 
 const std::vector<int>& smpl_parents() {
-  static const std::vector<int> p = {-1, 0,  0,  0,  1,  2,  3,  4,  5,  6,  7,  8,
-                                     9,  9,  9,  12, 13, 14, 16, 17, 18, 19, 20, 21};
+  static const std::vector<int> p = {-1, 0, 0, 0,  1,  2,  3,  4,  5,  6,  7,  8,
+                                     9,  9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21};
   return p;
 }
 
@@ -303,8 +301,8 @@ BodyModel load_body_model(const std::string& path) {
     m.posedirs = to_matrix(pd, P, 3 * V, path, "posedirs").transpose();
   } else {
     bad_shape(path, "posedirs", pd,
-              "(" + std::to_string(V) + ", 3, " + std::to_string(P) + ") for " +
-                  std::to_string(J) + " joints");
+              "(" + std::to_string(V) + ", 3, " + std::to_string(P) + ") for " + std::to_string(J) +
+                  " joints");
   }
 
   const NpyArray& jr = need(z, "J_regressor", path);
@@ -426,16 +424,15 @@ BodyParams BodyParams::from_json(const nlohmann::json& j, const BodyModel& model
   if (j.contains("betas")) {
     p.betas = vec_of(j["betas"], "betas");
     if (p.betas.size() > model.num_betas)
-      throw Error("params: 'betas' has " + std::to_string(p.betas.size()) +
-                  " values, but the " + kn + " model has " + std::to_string(model.num_betas) +
-                  " shape coefficients");
+      throw Error("params: 'betas' has " + std::to_string(p.betas.size()) + " values, but the " +
+                  kn + " model has " + std::to_string(model.num_betas) + " shape coefficients");
   }
   if (j.contains("expression")) {
     p.expression = vec_of(j["expression"], "expression");
     if (p.expression.size() > model.num_expression)
       throw Error("params: 'expression' has " + std::to_string(p.expression.size()) +
-                  " values, but the " + kn + " model has " +
-                  std::to_string(model.num_expression) + " expression coefficients");
+                  " values, but the " + kn + " model has " + std::to_string(model.num_expression) +
+                  " expression coefficients");
   }
   get3("global_orient", p.global_orient);
   get3("transl", p.transl);
@@ -455,8 +452,8 @@ BodyParams BodyParams::from_json(const nlohmann::json& j, const BodyModel& model
   for (const char* key : {"left_hand_pose", "right_hand_pose"}) {
     if (!j.contains(key)) continue;
     if (!has_hands(model))
-      throw Error(std::string("params: '") + key + "' is only used by SMPL+H / SMPL-X models, not " +
-                  kn);
+      throw Error(std::string("params: '") + key +
+                  "' is only used by SMPL+H / SMPL-X models, not " + kn);
     Eigen::VectorXd v = vec_of(j[key], key);
     check_len(v, 45, key, "full axis-angle of 15 hand joints; PCA hand poses are not supported");
     (std::string(key) == "left_hand_pose" ? p.left_hand_pose : p.right_hand_pose) = v;
@@ -490,8 +487,8 @@ Eigen::MatrixXd BodyParams::full_pose(const BodyModel& model) const {
   Eigen::MatrixXd P = Eigen::MatrixXd::Zero(J, 3);
   P.row(0) = global_orient.transpose();
   if (body_pose.size()) {
-    check_len(body_pose, 3 * nb, "body_pose", std::string("3 per non-root body joint of the ") +
-                                                  model.kind_name() + " model");
+    check_len(body_pose, 3 * nb, "body_pose",
+              std::string("3 per non-root body joint of the ") + model.kind_name() + " model");
     for (int k = 0; k < nb; ++k) P.row(1 + k) = body_pose.segment(3 * k, 3).transpose();
   }
   int hand0 = -1;
@@ -527,8 +524,8 @@ Eigen::MatrixXd BodyParams::full_pose(const BodyModel& model) const {
 BodyState body_forward(const BodyModel& m, const BodyParams& params) {
   const int V = m.num_vertices(), J = m.num_joints();
   if (params.betas.size() > m.num_betas)
-    throw Error("body_forward: " + std::to_string(params.betas.size()) + " betas for a model with " +
-                std::to_string(m.num_betas));
+    throw Error("body_forward: " + std::to_string(params.betas.size()) +
+                " betas for a model with " + std::to_string(m.num_betas));
   if (params.expression.size() > m.num_expression)
     throw Error("body_forward: " + std::to_string(params.expression.size()) +
                 " expression coefficients for a model with " + std::to_string(m.num_expression));

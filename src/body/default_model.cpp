@@ -31,21 +31,21 @@ std::array<Vec3, 24> rest_joints() {
     J[size_t(l)] = Vec3(x, y, z);
     J[size_t(r)] = Vec3(-x, y, z);
   };
-  J[0] = Vec3(0, -0.22, 0.0);     // pelvis
-  L(1, 2, 0.075, -0.31, 0.0);     // hips
-  J[3] = Vec3(0, -0.11, -0.01);   // spine1
-  L(4, 5, 0.095, -0.70, 0.01);    // knees
-  J[6] = Vec3(0, 0.02, -0.005);   // spine2
-  L(7, 8, 0.085, -1.08, -0.03);   // ankles
-  J[9] = Vec3(0, 0.08, 0.0);      // spine3
-  L(10, 11, 0.10, -1.13, 0.09);   // feet (ball)
-  J[12] = Vec3(0, 0.285, -0.015); // neck
-  L(13, 14, 0.075, 0.195, -0.01); // collars
-  J[15] = Vec3(0, 0.36, 0.02);    // head
-  L(16, 17, 0.175, 0.225, -0.02); // shoulders
-  L(18, 19, 0.43, 0.20, -0.03);   // elbows
-  L(20, 21, 0.68, 0.18, -0.03);   // wrists
-  L(22, 23, 0.765, 0.171, -0.03); // hands
+  J[0] = Vec3(0, -0.22, 0.0);      // pelvis
+  L(1, 2, 0.075, -0.31, 0.0);      // hips
+  J[3] = Vec3(0, -0.11, -0.01);    // spine1
+  L(4, 5, 0.095, -0.70, 0.01);     // knees
+  J[6] = Vec3(0, 0.02, -0.005);    // spine2
+  L(7, 8, 0.085, -1.08, -0.03);    // ankles
+  J[9] = Vec3(0, 0.08, 0.0);       // spine3
+  L(10, 11, 0.10, -1.13, 0.09);    // feet (ball)
+  J[12] = Vec3(0, 0.285, -0.015);  // neck
+  L(13, 14, 0.075, 0.195, -0.01);  // collars
+  J[15] = Vec3(0, 0.36, 0.02);     // head
+  L(16, 17, 0.175, 0.225, -0.02);  // shoulders
+  L(18, 19, 0.43, 0.20, -0.03);    // elbows
+  L(20, 21, 0.68, 0.18, -0.03);    // wrists
+  L(22, 23, 0.765, 0.171, -0.03);  // hands
   return J;
 }
 
@@ -107,7 +107,9 @@ double smin(double a, double b, double k) {
   return std::min(a, b) - h * h * k * 0.25;
 }
 
-Vec3 mirror(const Vec3& p) { return Vec3(-p.x(), p.y(), p.z()); }
+Vec3 mirror(const Vec3& p) {
+  return Vec3(-p.x(), p.y(), p.z());
+}
 
 struct ImplicitBody {
   std::vector<Prim> prims;
@@ -150,20 +152,20 @@ ImplicitBody make_implicit(const std::array<Vec3, 24>& J) {
   P.push_back(ellipsoid(Vec3(0, 0.11, -0.005), Vec3(0.165, 0.15, 0.105), 0.06));
   both(ellipsoid(Vec3(0.07, -0.29, -0.05), Vec3(0.085, 0.095, 0.075), 0.05));  // glutes
   both(ellipsoid(Vec3(0.075, 0.13, 0.045), Vec3(0.07, 0.06, 0.05), 0.05));     // chest
-  both(cone(Vec3(0.0, 0.2, -0.02), J[16], 0.065, 0.055, 0.05));                 // shoulder girdle
+  both(cone(Vec3(0.0, 0.2, -0.02), J[16], 0.065, 0.055, 0.05));                // shoulder girdle
   // Neck and head.
   P.push_back(cone(Vec3(0, 0.2, -0.015), Vec3(0, 0.39, 0.0), 0.055, 0.052, 0.04));
   P.push_back(ellipsoid(Vec3(0, 0.455, 0.015), Vec3(0.078, 0.105, 0.098), 0.04));
   P.push_back(ellipsoid(Vec3(0, 0.395, 0.045), Vec3(0.062, 0.05, 0.065), 0.03));
   P.push_back(ellipsoid(Vec3(0, 0.445, 0.108), Vec3(0.014, 0.026, 0.022), 0.015));  // nose
-  both(ellipsoid(Vec3(0.076, 0.45, 0.0), Vec3(0.016, 0.03, 0.02), 0.015));           // ears
+  both(ellipsoid(Vec3(0.076, 0.45, 0.0), Vec3(0.016, 0.03, 0.02), 0.015));          // ears
   // Arms and mitten hands.
   both(cone(J[16], J[18], 0.055, 0.042, 0.03));
   both(cone(J[18], J[20], 0.042, 0.03, 0.02));
   const Vec3 dir = (J[20] - J[18]).normalized();
   both(ellipsoid_along(J[20] + 0.085 * dir, dir, Vec3(0.095, 0.024, 0.048), 0.02));
-  both(cone(J[20] + 0.03 * dir + Vec3(0, -0.006, 0.035), J[20] + 0.085 * dir + Vec3(0, -0.01, 0.068),
-            0.015, 0.013, 0.015));  // thumb
+  both(cone(J[20] + 0.03 * dir + Vec3(0, -0.006, 0.035),
+            J[20] + 0.085 * dir + Vec3(0, -0.01, 0.068), 0.015, 0.013, 0.015));  // thumb
   // Legs and feet.
   both(cone(J[1], J[4], 0.085, 0.055, 0.04));
   both(cone(J[4], J[7], 0.052, 0.034, 0.02));
@@ -250,8 +252,9 @@ TriMesh polygonise(const ImplicitBody& f, double h) {
           if (ni == 1 || ni == 3) {
             const int apex = ni == 1 ? ins[0] : outs[0];
             const int* others = ni == 1 ? outs : ins;
-            emit({{{tv[apex], tv[others[0]]}, {tv[apex], tv[others[1]]}, {tv[apex], tv[others[2]]}}},
-                 pin, pout);
+            emit(
+                {{{tv[apex], tv[others[0]]}, {tv[apex], tv[others[1]]}, {tv[apex], tv[others[2]]}}},
+                pin, pout);
           } else {
             const int64_t a = tv[ins[0]], b = tv[ins[1]], c0 = tv[outs[0]], d = tv[outs[1]];
             // Quad cycle (a,c0) (a,d) (b,d) (b,c0), split along (a,c0)-(b,d).
@@ -337,10 +340,9 @@ void top4_normalise(Eigen::MatrixXd& W) {
   for (Eigen::Index v = 0; v < W.rows(); ++v) {
     std::array<std::pair<double, int>, 24> e;
     for (int j = 0; j < 24; ++j) e[size_t(j)] = {W(v, j), j};
-    std::partial_sort(e.begin(), e.begin() + 4, e.end(),
-                      [](const auto& x, const auto& y) {
-                        return x.first != y.first ? x.first > y.first : x.second < y.second;
-                      });
+    std::partial_sort(e.begin(), e.begin() + 4, e.end(), [](const auto& x, const auto& y) {
+      return x.first != y.first ? x.first > y.first : x.second < y.second;
+    });
     W.row(v).setZero();
     double s = 0;
     for (int q = 0; q < 4; ++q)
@@ -395,7 +397,8 @@ Eigen::MatrixXd joint_regressor(const Eigen::MatrixXd& V, const std::array<Vec3,
   Eigen::MatrixXd R = Eigen::MatrixXd::Zero(24, N);
   for (int j = 0; j < 24; ++j) {
     Eigen::VectorXd d2(N);
-    for (Eigen::Index v = 0; v < N; ++v) d2[v] = (V.row(v).transpose() - J[size_t(j)]).squaredNorm();
+    for (Eigen::Index v = 0; v < N; ++v)
+      d2[v] = (V.row(v).transpose() - J[size_t(j)]).squaredNorm();
     const double dmin = std::sqrt(d2.minCoeff());
     const double rho = 0.5 * dmin + 0.01;
     Eigen::VectorXd w0(N);
@@ -493,8 +496,8 @@ Eigen::MatrixXd shape_directions(const Eigen::MatrixXd& V, const Eigen::MatrixXd
     d[7] = Vec3(0, 0.05 * std::max(0.0, up), 0);
     // 8: belly.
     const double by = (p.y() + 0.08) / 0.13;
-    d[8] = Vec3(0, 0, 0.045 * smoothstep(-0.03, 0.09, p.z()) * std::exp(-by * by) *
-                          group(v, {0, 3, 6}));
+    d[8] = Vec3(0, 0,
+                0.045 * smoothstep(-0.03, 0.09, p.z()) * std::exp(-by * by) * group(v, {0, 3, 6}));
     // 9: limb muscularity (upper arms, forearms, thighs, calves) and chest.
     for (int j : {16, 17, 18, 19, 1, 2, 4, 5, 9, 13, 14}) {
       if (W(v, j) == 0) continue;
@@ -507,6 +510,115 @@ Eigen::MatrixXd shape_directions(const Eigen::MatrixXd& V, const Eigen::MatrixXd
   return D;
 }
 
+// ------------------------------------------------------------------ exact mirror symmetry
+int mirror_joint(int j) {
+  static constexpr int m[24] = {0,  2,  1,  3,  5,  4,  6,  8,  7,  9,  11, 10,
+                                12, 14, 13, 15, 17, 16, 19, 18, 21, 20, 23, 22};
+  return m[j];
+}
+
+// Partner of each vertex under x -> -x (the polygonisation is symmetric up to rounding).
+std::vector<int> mirror_vertices(const Eigen::MatrixXd& V) {
+  const double cell = 1e-3;
+  std::unordered_map<int64_t, std::vector<int>> grid;
+  auto key = [&](int64_t x, int64_t y, int64_t z) {
+    return ((x + (1 << 20)) << 42) ^ ((y + (1 << 20)) << 21) ^ (z + (1 << 20));
+  };
+  auto q = [&](double v) { return int64_t(std::floor(v / cell)); };
+  for (Eigen::Index v = 0; v < V.rows(); ++v)
+    grid[key(q(V(v, 0)), q(V(v, 1)), q(V(v, 2)))].push_back(int(v));
+  std::vector<int> out(size_t(V.rows()), -1);
+  for (Eigen::Index v = 0; v < V.rows(); ++v) {
+    const Vec3 m(-V(v, 0), V(v, 1), V(v, 2));
+    double best = 1e-7;
+    for (int64_t dx = -1; dx <= 1; ++dx)
+      for (int64_t dy = -1; dy <= 1; ++dy)
+        for (int64_t dz = -1; dz <= 1; ++dz) {
+          auto it = grid.find(key(q(m.x()) + dx, q(m.y()) + dy, q(m.z()) + dz));
+          if (it == grid.end()) continue;
+          for (int u : it->second) {
+            const double d = (V.row(u).transpose() - m).norm();
+            if (d < best) {
+              best = d;
+              out[size_t(v)] = u;
+            }
+          }
+        }
+    if (out[size_t(v)] < 0) throw Error("default body model: mesh is not mirror-symmetric (bug)");
+  }
+  for (size_t v = 0; v < out.size(); ++v)
+    if (out[size_t(out[v])] != int(v))
+      throw Error("default body model: inconsistent mirror map (bug)");
+  return out;
+}
+
+void symmetrise_positions(Eigen::MatrixXd& V, const std::vector<int>& mir) {
+  for (Eigen::Index v = 0; v < V.rows(); ++v) {
+    const int u = mir[size_t(v)];
+    if (u == v) {
+      V(v, 0) = 0.0;
+    } else if (v < u) {
+      V.row(u) << -V(v, 0), V(v, 1), V(v, 2);
+    }
+  }
+}
+
+// Makes skin weights exactly mirror-symmetric with at most 4 influences: a vertex off the
+// midline copies its partner's mirrored weights; a midline vertex keeps whole mirror orbits.
+void symmetrise_weights(Eigen::MatrixXd& W, const std::vector<int>& mir) {
+  for (Eigen::Index v = 0; v < W.rows(); ++v) {
+    const int u = mir[size_t(v)];
+    if (v < u) {
+      for (int j = 0; j < 24; ++j) W(u, mirror_joint(j)) = W(v, j);
+    } else if (u == v) {
+      // Orbits: centre joints alone, left/right pairs together.
+      std::vector<std::pair<double, int>> orbit;
+      for (int j = 0; j < 24; ++j) {
+        const int mj = mirror_joint(j);
+        if (mj < j) continue;
+        const double w = mj == j ? W(v, j) : W(v, j) + W(v, mj);
+        if (w > 0) orbit.emplace_back(w, j);
+      }
+      std::sort(orbit.begin(), orbit.end(), [](const auto& a, const auto& b) {
+        return a.first != b.first ? a.first > b.first : a.second < b.second;
+      });
+      W.row(v).setZero();
+      int used = 0;
+      double sum = 0;
+      for (const auto& [w, j] : orbit) {
+        const int size = mirror_joint(j) == j ? 1 : 2;
+        if (used + size > 4) continue;
+        used += size;
+        sum += w;
+        if (size == 1) {
+          W(v, j) = w;
+        } else {
+          W(v, j) = W(v, mirror_joint(j)) = 0.5 * w;
+        }
+      }
+      W.row(v) /= sum;
+    }
+  }
+}
+
+void symmetrise_regressor(Eigen::MatrixXd& R, const std::vector<int>& mir) {
+  const Eigen::MatrixXd R0 = R;
+  for (int j = 0; j < 24; ++j) {
+    const int mj = mirror_joint(j);
+    for (Eigen::Index v = 0; v < R.cols(); ++v) R(j, v) = 0.5 * (R0(j, v) + R0(mj, mir[size_t(v)]));
+  }
+}
+
+void symmetrise_shapedirs(Eigen::MatrixXd& D, const std::vector<int>& mir) {
+  const Eigen::MatrixXd D0 = D;
+  for (Eigen::Index v = 0; v < Eigen::Index(mir.size()); ++v) {
+    const Eigen::Index u = mir[size_t(v)];
+    D.row(3 * v + 0) = 0.5 * (D0.row(3 * v + 0) - D0.row(3 * u + 0));
+    D.row(3 * v + 1) = 0.5 * (D0.row(3 * v + 1) + D0.row(3 * u + 1));
+    D.row(3 * v + 2) = 0.5 * (D0.row(3 * v + 2) + D0.row(3 * u + 2));
+  }
+}
+
 }  // namespace
 
 BodyModel make_default_body_model() {
@@ -514,6 +626,8 @@ BodyModel make_default_body_model() {
   const ImplicitBody body = make_implicit(J);
   TriMesh mesh = polygonise(body, 0.027);
   relax(mesh, body, 4);
+  const std::vector<int> mir = mirror_vertices(mesh.V);
+  symmetrise_positions(mesh.V, mir);
   if (!is_closed_manifold(mesh.F, int(mesh.V.rows())) ||
       euler_characteristic(mesh.F, int(mesh.V.rows())) != 2)
     throw Error("default body model: generated mesh is not a closed genus-0 manifold (bug)");
@@ -525,12 +639,24 @@ BodyModel make_default_body_model() {
   m.joint_names = body_joint_names(BodyKind::kDefault);
   const auto B = bones(J);
   m.weights = skin_weights(mesh, B, m.parents);
+  symmetrise_weights(m.weights, mir);
   m.J_regressor = joint_regressor(mesh.V, J);
+  symmetrise_regressor(m.J_regressor, mir);
   m.shapedirs = shape_directions(mesh.V, m.weights, J, B);
+  symmetrise_shapedirs(m.shapedirs, mir);
   m.num_betas = int(m.shapedirs.cols());
   m.num_expression = 0;
   m.posedirs = Eigen::MatrixXd::Zero(3 * mesh.V.rows(), 9 * 23);
   m.part_labels = part_labels_from_weights(m.weights, m.kind);
+  // Midline vertices whose left and right weights tie get the central part instead.
+  for (Eigen::Index v = 0; v < mesh.V.rows(); ++v) {
+    if (mir[size_t(v)] != v) continue;
+    int& l = m.part_labels[size_t(v)];
+    if (l >= kLeftUpperLeg)
+      l = kHips;
+    else if (l >= kLeftUpperArm)
+      l = kTorso;
+  }
   return m;
 }
 

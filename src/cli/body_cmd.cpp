@@ -27,12 +27,14 @@ nlohmann::json model_info(const ks::BodyModel& m) {
   j["body_pose_length"] = 3 * m.num_body_pose_joints();
   j["closed_manifold"] = ks::is_closed_manifold(m.faces, m.num_vertices());
   j["euler_characteristic"] = ks::euler_characteristic(m.faces, m.num_vertices());
-  const Eigen::Vector3d lo = m.v_template.colwise().minCoeff(), hi = m.v_template.colwise().maxCoeff();
+  const Eigen::Vector3d lo = m.v_template.colwise().minCoeff(),
+                        hi = m.v_template.colwise().maxCoeff();
   j["bbox_min"] = {lo.x(), lo.y(), lo.z()};
   j["bbox_max"] = {hi.x(), hi.y(), hi.z()};
   nlohmann::json parts = nlohmann::json::object();
   const auto counts = ks::part_vertex_counts(m.part_labels);
-  for (int p = 0; p < ks::kNumParts; ++p) parts[std::string(ks::kPartNames[size_t(p)])] = counts[size_t(p)];
+  for (int p = 0; p < ks::kNumParts; ++p)
+    parts[std::string(ks::kPartNames[size_t(p)])] = counts[size_t(p)];
   j["parts"] = parts;
   j["joint_names"] = m.joint_names;
   j["parents"] = m.parents;

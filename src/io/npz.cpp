@@ -13,7 +13,9 @@ namespace ks {
 
 namespace {
 
-uint16_t rd16(const uint8_t* p) { return uint16_t(p[0] | (p[1] << 8)); }
+uint16_t rd16(const uint8_t* p) {
+  return uint16_t(p[0] | (p[1] << 8));
+}
 uint32_t rd32(const uint8_t* p) {
   return uint32_t(p[0]) | (uint32_t(p[1]) << 8) | (uint32_t(p[2]) << 16) | (uint32_t(p[3]) << 24);
 }
@@ -327,8 +329,8 @@ bool parse_npy(const uint8_t* data, size_t size, const std::string& what, NpyArr
 }
 
 std::vector<uint8_t> serialize_npy(const NpyArray& a) {
-  std::string h = "{'descr': '" + a.descr() + "', 'fortran_order': False, 'shape': " +
-                  a.shape_string() + ", }";
+  std::string h =
+      "{'descr': '" + a.descr() + "', 'fortran_order': False, 'shape': " + a.shape_string() + ", }";
   // Pad so that magic(6)+version(2)+len(2)+header is a multiple of 64, ending in '\n'.
   size_t total = 10 + h.size() + 1;
   const size_t pad = (64 - total % 64) % 64;
@@ -421,7 +423,9 @@ NpzFile read_npz_bytes(const std::vector<uint8_t>& bytes, const std::string& wha
   return out;
 }
 
-NpzFile read_npz(const std::string& path) { return read_npz_bytes(read_file_bytes(path), path); }
+NpzFile read_npz(const std::string& path) {
+  return read_npz_bytes(read_file_bytes(path), path);
+}
 
 std::vector<uint8_t> npz_bytes(const std::map<std::string, NpyArray>& arrays, bool compress) {
   std::vector<uint8_t> out, cd;
@@ -445,8 +449,8 @@ std::vector<uint8_t> npz_bytes(const std::map<std::string, NpyArray>& arrays, bo
     wr16(out, 20);
     wr16(out, 0);
     wr16(out, method);
-    wr16(out, 0);       // time
-    wr16(out, 0x21);    // date 1980-01-01
+    wr16(out, 0);     // time
+    wr16(out, 0x21);  // date 1980-01-01
     wr32(out, crc);
     wr32(out, uint32_t(payload.size()));
     wr32(out, uint32_t(raw.size()));

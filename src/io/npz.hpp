@@ -11,13 +11,13 @@ namespace ks {
 
 // One array, always held little-endian in C (row-major) order.
 struct NpyArray {
-  char kind = 'f';    // 'f' float, 'i' signed int, 'u' unsigned int, 'b' bool
-  int itemsize = 8;   // bytes per element
+  char kind = 'f';   // 'f' float, 'i' signed int, 'u' unsigned int, 'b' bool
+  int itemsize = 8;  // bytes per element
   std::vector<int64_t> shape;
   std::vector<uint8_t> data;
 
   int64_t size() const;
-  std::string descr() const;  // e.g. "<f8"
+  std::string descr() const;         // e.g. "<f8"
   std::string shape_string() const;  // e.g. "(6890, 3)"
   // Element i (flat, C order) converted to double / int64.
   double as_double(int64_t i) const;

@@ -6,6 +6,7 @@
 #include <functional>
 
 #include "core/error.hpp"
+#include "motion/amass.hpp"
 
 namespace ks {
 
@@ -240,6 +241,9 @@ Motion builtin_motion(const std::string& name, int frames) {
 Motion load_motion(const std::string& name_or_path, int frames) {
   for (const auto& b : builtins())
     if (b.info.name == name_or_path) return builtin_motion(name_or_path, frames);
+  const auto n = name_or_path.size();
+  if (n > 4 && name_or_path.compare(n - 4, 4, ".npz") == 0)
+    return load_amass_npz(name_or_path, frames);  // AMASS (src/motion/amass.hpp)
   throw Error("unknown motion \"" + name_or_path +
               "\": not a built-in motion (see `kinesplat motions`)");
 }

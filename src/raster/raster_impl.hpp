@@ -3,11 +3,18 @@
 // finite-difference tests) and on the buffer structs (which share member names).
 // Included only by rasterizer.cpp and raster_double.cpp.
 #include <omp.h>
+#include <time.h>
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <type_traits>
@@ -17,11 +24,45 @@
 #include "raster/rasterizer.hpp"
 #include "raster/sh.hpp"
 
+// Vector-extension types wider than the baseline ISA (the double test path) change the ABI of
+// internal helpers only; nothing here is exported.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
+
 namespace ks::raster_detail {
+
+// Phase timing on stderr when KS_RASTER_PROFILE is set (diagnostics only).
+struct PhaseTimer {
+  bool on = std::getenv("KS_RASTER_PROFILE") != nullptr;
+  std::chrono::steady_clock::time_point t = std::chrono::steady_clock::now();
+  double cpu = cpu_now();
+  static double cpu_now() {
+    timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+  }
+  void mark(const char* name) {
+    if (!on) return;
+    const auto now = std::chrono::steady_clock::now();
+    const double c = cpu_now();
+    std::fprintf(stderr, "  %s %.2f ms (master thread CPU %.2f ms)\n", name,
+                 std::chrono::duration<double, std::milli>(now - t).count(), c - cpu);
+    t = now;
+    cpu = c;
+  }
+};
 
 constexpr int kTS = kTileSize;
 constexpr int kTilePixels = kTS * kTS;
 constexpr int kBatch = 64;
+// Pixels of a tile row processed together (one SIMD vector on the baseline SSE2 build).
+#if defined(__AVX2__)
+constexpr int kCW = 8;
+#else
+constexpr int kCW = 4;
+#endif
+constexpr int kCPR = kTS / kCW;      // chunks per tile row
+constexpr int kChunks = kTS * kCPR;  // chunks per tile
 
 // exp for x <= 0 that vectorises (no libm call): Cody-Waite reduction + degree-6 polynomial,
 // relative error ~2e-7. The double path uses std::exp.
@@ -44,6 +85,79 @@ inline float fexp(float x) {
 }
 inline double fexp(double x) {
   return std::exp(x);
+}
+
+// Explicit SIMD over the kCW pixels of a chunk (GCC/Clang vector extensions: SSE2 on the
+// baseline build, wider with -march). The double instantiation (tests) uses std::exp per lane.
+template <class T>
+struct Simd;
+template <>
+struct Simd<float> {
+  typedef float V __attribute__((vector_size(sizeof(float) * kCW)));
+  typedef int32_t I __attribute__((vector_size(sizeof(int32_t) * kCW)));
+  typedef int32_t S;
+  static V exp(V x) {
+    const V lo = V{} - 87.0f;
+    x = x < lo ? lo : x;
+    const V t = x * 1.4426950408889634f;
+    const V k = (t + 12582912.0f) - 12582912.0f;
+    const V r = (x - k * 0.693145751953125f) - k * 1.428606765330187e-06f;
+    V p = V{} + 1.0f / 720.0f;
+    p = p * r + 1.0f / 120.0f;
+    p = p * r + 1.0f / 24.0f;
+    p = p * r + 1.0f / 6.0f;
+    p = p * r + 0.5f;
+    p = p * r + 1.0f;
+    p = p * r + 1.0f;
+    const I bits = (__builtin_convertvector(k, I) + 127) << 23;
+    return p * (V)bits;
+  }
+  // Number of set lanes of a comparison mask.
+  static int count(const I& m) {
+#if defined(__AVX__)
+    if constexpr (kCW == 8)
+      return __builtin_popcount(_mm256_movemask_ps(_mm256_castsi256_ps((__m256i)m)));
+#endif
+#if defined(__SSE2__)
+    if constexpr (kCW == 4)
+      return __builtin_popcount(_mm_movemask_ps(_mm_castsi128_ps((__m128i)m)));
+#endif
+    int n = 0;
+    for (int l = 0; l < kCW; ++l) n -= int(m[l]);
+    return n;
+  }
+};
+template <>
+struct Simd<double> {
+  typedef double V __attribute__((vector_size(sizeof(double) * kCW)));
+  typedef int64_t I __attribute__((vector_size(sizeof(int64_t) * kCW)));
+  typedef int64_t S;
+  static V exp(V x) {
+    for (int l = 0; l < kCW; ++l) x[l] = std::exp(x[l]);
+    return x;
+  }
+  static int count(const I& m) {
+    int n = 0;
+    for (int l = 0; l < kCW; ++l) n -= int(m[l]);
+    return n;
+  }
+};
+
+template <class V, class T>
+inline V vload(const T* p) {
+  V v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+template <class V, class T>
+inline void vstore(T* p, const V& v) {
+  std::memcpy(p, &v, sizeof v);
+}
+template <class V>
+inline V lanes() {
+  V v{};
+  for (int l = 0; l < kCW; ++l) v[l] = l;
+  return v;
 }
 
 template <class T>
@@ -168,6 +282,7 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
   const int ntiles = tiles_x * tiles_y;
   out.tile_ranges.resize(2 * size_t(ntiles));
 
+  PhaseTimer timer;
   // 1. Cull + project + colour, one parallel pass.
 #pragma omp parallel for schedule(static)
   for (size_t i = 0; i < N; ++i) {
@@ -239,6 +354,7 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
     }
   }
 
+  timer.mark("project");
   // 2. Depth order of the visible Gaussians (one global radix sort).
   auto& keys = out.scratch_keys;
   auto& ids = out.scratch_ids;
@@ -251,6 +367,7 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
     }
   radix_sort(keys, ids, out.scratch_keys2, out.scratch_ids2);
   const size_t nvis = ids.size();
+  timer.mark("sort");
 
   // 3. Binning: per thread per tile counts, prefix sum, scatter in depth order (stable).
   const int maxthreads = omp_get_max_threads();
@@ -293,6 +410,7 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
     }
   }
 
+  timer.mark("bin");
   // 4. Compositing, front to back, one tile per task.
   const T bg[3] = {T(s.background[0]), T(s.background[1]), T(s.background[2])};
 #pragma omp parallel for schedule(dynamic, 2)
@@ -300,23 +418,28 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
     const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
     alignas(64) T Tt[kTilePixels], C0[kTilePixels], C1[kTilePixels], C2[kTilePixels],
         Dp[kTilePixels];
-    alignas(64) int32_t live[kTilePixels], last[kTilePixels];
-    int row_live[kTS];
+    using SV = Simd<T>;
+    using V = typename SV::V;
+    using VI = typename SV::I;
+    using SI = typename SV::S;
+    // A pixel is finished (transmittance would fall below 1e-4, or outside the image) when its
+    // Tt is negative; |Tt| is its transmittance.
+    alignas(64) SI last[kTilePixels];
+    int chunk_live[kChunks];  // live pixels per chunk of kCW pixels of a row
     int tile_live = 0;
-    for (int r = 0; r < kTS; ++r) {
-      row_live[r] = 0;
+    for (int q = 0; q < kChunks; ++q) chunk_live[q] = 0;
+    for (int r = 0; r < kTS; ++r)
       for (int c = 0; c < kTS; ++c) {
         const int p = r * kTS + c;
-        Tt[p] = 1, C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
-        live[p] = (ox + c < W && oy + r < H) ? 1 : 0;
-        row_live[r] += live[p];
+        const bool in = ox + c < W && oy + r < H;
+        Tt[p] = in ? T(1) : T(-1), C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
+        chunk_live[p / kCW] += in;
+        tile_live += in;
       }
-      tile_live += row_live[r];
-    }
     const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
     alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
         br[kBatch], bgc[kBatch], bbl[kBatch], bz[kBatch];
-    int by0[kBatch], by1[kBatch];
+    int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
     for (uint32_t b0 = start; b0 < end && tile_live > 0; b0 += kBatch) {
       const int n = int(std::min<uint32_t>(kBatch, end - b0));
       for (int k = 0; k < n; ++k) {
@@ -328,45 +451,45 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
         br[k] = out.colors[3 * id], bgc[k] = out.colors[3 * id + 1],
         bbl[k] = out.colors[3 * id + 2];
         bz[k] = out.depths[id];
-        by0[k] = std::max(out.rects[4 * id + 2] - oy, 0);
-        by1[k] = std::min(out.rects[4 * id + 3] - oy, kTS - 1);
+        const int* rc = &out.rects[4 * size_t(id)];
+        bx0[k] = std::max(rc[0] - ox, 0) / kCW;
+        bx1[k] = std::min(rc[1] - ox, kTS - 1) / kCW;
+        by0[k] = std::max(rc[2] - oy, 0);
+        by1[k] = std::min(rc[3] - oy, kTS - 1);
       }
       for (int k = 0; k < n && tile_live > 0; ++k) {
         const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
         const T cr = br[k], cg = bgc[k], cb = bbl[k], zz = bz[k];
         const int32_t idx1 = int32_t(b0 - start) + k + 1;
         for (int r = by0[k]; r <= by1[k]; ++r) {
-          if (row_live[r] == 0) continue;
           const T dy = bmy[k] - (T(r) + T(0.5));
+          const int q0 = bx0[k], q1 = bx1[k];
           const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
-          int nterm = 0;
-          T* tt = Tt + r * kTS;
-          T *c0 = C0 + r * kTS, *c1 = C1 + r * kTS, *c2 = C2 + r * kTS, *dp = Dp + r * kTS;
-          int32_t* lv = live + r * kTS;
-          int32_t* ls = last + r * kTS;
-#pragma omp simd reduction(+ : nterm)
-          for (int col = 0; col < kTS; ++col) {
-            const T dx = mx - (T(col) + T(0.5));
-            const T pw = -(T(0.5) * a * dx * dx + cdy) - bdy * dx;
-            const T al = std::min(T(0.99), o * fexp(pw));
-            const T Tp = tt[col];
-            const bool ok = (pw <= 0) & (al >= T(1.0f / 255.0f)) & (lv[col] != 0);
-            const T Tn = Tp * (T(1) - al);
-            const bool term = ok & (Tn < T(1e-4));
-            const bool con = ok & !term;
-            const T w = con ? al * Tp : T(0);
-            c0[col] += w * cr;
-            c1[col] += w * cg;
-            c2[col] += w * cb;
-            dp[col] += w * zz;
-            tt[col] = con ? Tn : Tp;
-            lv[col] = term ? 0 : lv[col];
-            ls[col] = con ? idx1 : ls[col];
-            nterm += term ? 1 : 0;
-          }
-          if (nterm) {
-            row_live[r] -= nterm;
-            tile_live -= nterm;
+          for (int q = q0; q <= q1; ++q) {
+            const int cq = r * kCPR + q;
+            if (chunk_live[cq] == 0) continue;
+            const int p0 = cq * kCW;
+            const V dx = (mx - T(q * kCW) - T(0.5)) - lanes<V>();
+            const V pw = -(T(0.5) * a * dx * dx + cdy) - bdy * dx;
+            const V og = o * SV::exp(pw);
+            const V al = og < T(0.99) ? og : V{} + T(0.99);
+            const V Tp = vload<V>(Tt + p0);
+            const VI ok = (pw <= T(0)) & (al >= T(1.0f / 255.0f)) & (Tp > T(0));
+            const V Tn = Tp * (T(1) - al);
+            const VI term = ok & (Tn < T(1e-4));
+            const VI con = ok & ~term;
+            const V w = con ? al * Tp : V{};
+            vstore(C0 + p0, vload<V>(C0 + p0) + w * cr);
+            vstore(C1 + p0, vload<V>(C1 + p0) + w * cg);
+            vstore(C2 + p0, vload<V>(C2 + p0) + w * cb);
+            vstore(Dp + p0, vload<V>(Dp + p0) + w * zz);
+            vstore(Tt + p0, con ? Tn : (term ? -Tp : Tp));
+            vstore(last + p0, (con & SI(idx1)) | (~con & vload<VI>(last + p0)));
+            const int nterm = SV::count(term);
+            if (nterm) {
+              chunk_live[cq] -= nterm;
+              tile_live -= nterm;
+            }
           }
         }
       }
@@ -375,15 +498,17 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
       for (int c = 0; c < kTS && ox + c < W; ++c) {
         const int p = r * kTS + c;
         const size_t pix = size_t(oy + r) * W + ox + c;
-        out.color.data[3 * pix] = C0[p] + Tt[p] * bg[0];
-        out.color.data[3 * pix + 1] = C1[p] + Tt[p] * bg[1];
-        out.color.data[3 * pix + 2] = C2[p] + Tt[p] * bg[2];
-        out.alpha.data[pix] = 1 - Tt[p];
+        const T Tf = std::abs(Tt[p]);
+        out.color.data[3 * pix] = C0[p] + Tf * bg[0];
+        out.color.data[3 * pix + 1] = C1[p] + Tf * bg[1];
+        out.color.data[3 * pix + 2] = C2[p] + Tf * bg[2];
+        out.alpha.data[pix] = 1 - Tf;
         out.depth.data[pix] = Dp[p];
-        out.final_T[pix] = Tt[p];
+        out.final_T[pix] = Tf;
         out.n_contrib[pix] = uint32_t(last[p]);
       }
   }
+  timer.mark("composite");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -415,7 +540,7 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
   const size_t stride = size_t(kNG) * N;
   gr.scratch.resize(size_t(maxthreads) * stride);
   const T bg[3] = {T(s.background[0]), T(s.background[1]), T(s.background[2])};
-
+  PhaseTimer timer;
 #pragma omp parallel
   {
     const int tid = omp_get_thread_num();
@@ -433,17 +558,21 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
       const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
       alignas(64) T Tt[kTilePixels], Tf[kTilePixels], R0[kTilePixels], R1[kTilePixels],
           R2[kTilePixels], D0[kTilePixels], D1[kTilePixels], D2[kTilePixels], DA[kTilePixels];
-      alignas(64) int32_t last[kTilePixels];
-      int row_max[kTS];
+      using SV = Simd<T>;
+      using V = typename SV::V;
+      using VI = typename SV::I;
+      using SI = typename SV::S;
+      alignas(64) SI last[kTilePixels];
+      int chunk_max[kChunks];  // max over the chunk's pixels of last contributor + 1
       int jmax = 0;
-      for (int r = 0; r < kTS; ++r) {
-        row_max[r] = 0;
+      for (int q = 0; q < kChunks; ++q) chunk_max[q] = 0;
+      for (int r = 0; r < kTS; ++r)
         for (int c = 0; c < kTS; ++c) {
           const int p = r * kTS + c;
           if (ox + c < W && oy + r < H) {
             const size_t pix = size_t(oy + r) * W + ox + c;
             Tt[p] = Tf[p] = fwd.final_T[pix];
-            last[p] = int32_t(fwd.n_contrib[pix]);
+            last[p] = SI(fwd.n_contrib[pix]);
             D0[p] = T(dLdc.data[3 * pix]), D1[p] = T(dLdc.data[3 * pix + 1]),
             D2[p] = T(dLdc.data[3 * pix + 2]);
             DA[p] = has_da ? T(dLda.data[pix]) : T(0);
@@ -451,13 +580,12 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
             Tt[p] = Tf[p] = 1, last[p] = 0, D0[p] = D1[p] = D2[p] = DA[p] = 0;
           }
           R0[p] = bg[0], R1[p] = bg[1], R2[p] = bg[2];
-          row_max[r] = std::max(row_max[r], int(last[p]));
+          chunk_max[p / kCW] = std::max(chunk_max[p / kCW], int(last[p]));
+          jmax = std::max(jmax, int(last[p]));
         }
-        jmax = std::max(jmax, row_max[r]);
-      }
       alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
           br[kBatch], bgc[kBatch], bbl[kBatch];
-      int by0[kBatch], by1[kBatch];
+      int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
       uint32_t bid[kBatch];
       for (int hi = jmax; hi > 0; hi -= kBatch) {
         const int lo = std::max(0, hi - kBatch);
@@ -472,43 +600,51 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
           bo[k] = fwd.opacities[id];
           br[k] = fwd.colors[3 * id], bgc[k] = fwd.colors[3 * id + 1];
           bbl[k] = fwd.colors[3 * id + 2];
-          by0[k] = std::max(fwd.rects[4 * id + 2] - oy, 0);
-          by1[k] = std::min(fwd.rects[4 * id + 3] - oy, kTS - 1);
+          const int* rc = &fwd.rects[4 * size_t(id)];
+          bx0[k] = std::max(rc[0] - ox, 0) / kCW;
+          bx1[k] = std::min(rc[1] - ox, kTS - 1) / kCW;
+          by0[k] = std::max(rc[2] - oy, 0);
+          by1[k] = std::min(rc[3] - oy, kTS - 1);
         }
         for (int j = hi - 1; j >= lo; --j) {
           const int k = j - lo;
           const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
           const T cr = br[k], cg = bgc[k], cb = bbl[k];
-          T s_mx = 0, s_my = 0, s_a = 0, s_b = 0, s_c = 0, s_o = 0, s_r = 0, s_g = 0, s_bl = 0;
+          V s_mx{}, s_my{}, s_a{}, s_b{}, s_c{}, s_o{}, s_r{}, s_g{}, s_bl{};
           for (int r = by0[k]; r <= by1[k]; ++r) {
-            if (row_max[r] <= j) continue;
+            // Same expressions as the forward pass, so the skip decisions agree bit for bit.
             const T dy = bmy[k] - (T(r) + T(0.5));
-            const int ro = r * kTS;
-#pragma omp simd reduction(+ : s_mx, s_my, s_a, s_b, s_c, s_o, s_r, s_g, s_bl)
-            for (int col = 0; col < kTS; ++col) {
-              const int p = ro + col;
-              const T dx = mx - (T(col) + T(0.5));
-              const T pw = -T(0.5) * (a * dx * dx + c * dy * dy) - b * dx * dy;
-              const T Gv = fexp(pw);
-              const T og = o * Gv;
-              const T al = std::min(T(0.99), og);
-              const bool ok = (j < last[p]) & (pw <= 0) & (al >= T(1.0f / 255.0f));
-              const T om = T(1) - al;
-              const T Tj = Tt[p] / om;
-              const T dLdal =
-                  Tj * ((cr - R0[p]) * D0[p] + (cg - R1[p]) * D1[p] + (cb - R2[p]) * D2[p]) +
-                  DA[p] * Tf[p] / om;
-              const T w = ok ? al * Tj : T(0);
-              s_r += w * D0[p];
-              s_g += w * D1[p];
-              s_bl += w * D2[p];
-              R0[p] = ok ? cr * al + om * R0[p] : R0[p];
-              R1[p] = ok ? cg * al + om * R1[p] : R1[p];
-              R2[p] = ok ? cb * al + om * R2[p] : R2[p];
-              Tt[p] = ok ? Tj : Tt[p];
-              const T dLdog = (ok & (og <= T(0.99))) ? dLdal : T(0);
+            const int q0 = bx0[k], q1 = bx1[k];
+            const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
+            for (int q = q0; q <= q1; ++q) {
+              const int cq = r * kCPR + q;
+              if (chunk_max[cq] <= j) continue;
+              const int p0 = cq * kCW;
+              const V dx = (mx - T(q * kCW) - T(0.5)) - lanes<V>();
+              const V pw = -(T(0.5) * a * dx * dx + cdy) - bdy * dx;
+              const V Gv = SV::exp(pw);
+              const V og = o * Gv;
+              const V al = og < T(0.99) ? og : V{} + T(0.99);
+              const VI ok =
+                  (SI(j) < vload<VI>(last + p0)) & (pw <= T(0)) & (al >= T(1.0f / 255.0f));
+              const V om = T(1) - al;
+              const V Tc = vload<V>(Tt + p0);
+              const V Tj = Tc / om;
+              V r0 = vload<V>(R0 + p0), r1 = vload<V>(R1 + p0), r2 = vload<V>(R2 + p0);
+              const V d0 = vload<V>(D0 + p0), d1 = vload<V>(D1 + p0), d2 = vload<V>(D2 + p0);
+              const V dLdal = Tj * ((cr - r0) * d0 + (cg - r1) * d1 + (cb - r2) * d2) +
+                              vload<V>(DA + p0) * vload<V>(Tf + p0) / om;
+              const V w = ok ? al * Tj : V{};
+              s_r += w * d0;
+              s_g += w * d1;
+              s_bl += w * d2;
+              vstore(R0 + p0, ok ? cr * al + om * r0 : r0);
+              vstore(R1 + p0, ok ? cg * al + om * r1 : r1);
+              vstore(R2 + p0, ok ? cb * al + om * r2 : r2);
+              vstore(Tt + p0, ok ? Tj : Tc);
+              const V dLdog = (ok & (og <= T(0.99))) ? dLdal : V{};
               s_o += Gv * dLdog;
-              const T dLdpw = og * dLdog;
+              const V dLdpw = og * dLdog;
               s_mx -= dLdpw * (a * dx + b * dy);
               s_my -= dLdpw * (c * dy + b * dx);
               s_a -= T(0.5) * dx * dx * dLdpw;
@@ -517,13 +653,17 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
             }
           }
           T* ga = acc + size_t(kNG) * bid[k];
-          ga[0] += s_mx, ga[1] += s_my, ga[2] += s_a, ga[3] += s_b, ga[4] += s_c;
-          ga[5] += s_o, ga[6] += s_r, ga[7] += s_g, ga[8] += s_bl;
+          for (int l = 0; l < kCW; ++l) {
+            ga[0] += s_mx[l], ga[1] += s_my[l], ga[2] += s_a[l], ga[3] += s_b[l];
+            ga[4] += s_c[l], ga[5] += s_o[l], ga[6] += s_r[l], ga[7] += s_g[l];
+            ga[8] += s_bl[l];
+          }
         }
       }
     }
   }
 
+  timer.mark("backward tiles");
   // Per-Gaussian chain rule to the raw parameters.
   gr.means.resize(3 * N);
   gr.log_scales.resize(3 * N);
@@ -640,6 +780,9 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
     gr.quats[4 * i + 2] = (gy - qy * dotq) / qn;
     gr.quats[4 * i + 3] = (gz - qz * dotq) / qn;
   }
+  timer.mark("backward per-Gaussian");
 }
 
 }  // namespace ks::raster_detail
+
+#pragma GCC diagnostic pop

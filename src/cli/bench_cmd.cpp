@@ -1,0 +1,116 @@
+// `kinesplat bench raster`: rasterizer throughput on a reproducible avatar-like cloud.
+#include <omp.h>
+
+#include <time.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "cli/registry.hpp"
+#include "core/error.hpp"
+#include "gaussians/ply.hpp"
+#include "raster/avatar_cloud.hpp"
+#include "raster/rasterizer.hpp"
+
+namespace {
+
+struct Opts {
+  size_t gaussians = 110000;
+  int width = 512, height = 768, frames = 10, threads = 0;
+  bool backward = false;
+  std::string save_ply, save_camera;
+};
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+void run(const Opts& o) {
+  using clock = std::chrono::steady_clock;
+  if (o.gaussians == 0 || o.width <= 0 || o.height <= 0 || o.frames <= 0)
+    throw ks::Error("bench raster: --gaussians, --width, --height and --frames must be positive");
+  if (o.threads > 0) omp_set_num_threads(o.threads);
+  const ks::Gaussians g = ks::make_avatar_cloud(o.gaussians, 1);
+  const ks::Camera cam = ks::avatar_camera(o.width, o.height);
+  if (!o.save_ply.empty()) ks::write_ply(o.save_ply, g);
+  if (!o.save_camera.empty()) cam.save(o.save_camera);
+  ks::RasterSettings s;
+  ks::RasterResult r;
+  ks::RasterGrads gr;
+  ks::Image dc(o.width, o.height, 3), da(o.width, o.height, 1);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> U(-1e-3f, 1e-3f);
+  for (float& v : dc.data) v = U(rng);
+  for (float& v : da.data) v = U(rng);
+  auto ms_since = [](clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(clock::now() - t0).count();
+  };
+  rasterize_forward(g, cam, s, r);  // warm-up: buffers sized, threads started
+  if (o.backward) rasterize_backward(g, cam, s, r, dc, da, gr);
+  auto cpu_ms = [] {
+    timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+  };
+  std::vector<double> fwd, both;
+  const double cpu0 = cpu_ms();
+  for (int f = 0; f < o.frames; ++f) {
+    auto t0 = clock::now();
+    rasterize_forward(g, cam, s, r);
+    fwd.push_back(ms_since(t0));
+  }
+  const double cpu_fwd = (cpu_ms() - cpu0) / o.frames;
+  const double cpu1 = cpu_ms();
+  if (o.backward)
+    for (int f = 0; f < o.frames; ++f) {
+      auto t0 = clock::now();
+      rasterize_forward(g, cam, s, r);
+      rasterize_backward(g, cam, s, r, dc, da, gr);
+      both.push_back(ms_since(t0));
+    }
+  const double cpu_both = o.backward ? (cpu_ms() - cpu1) / o.frames : 0.0;
+  size_t visible = 0;
+  for (int rad : r.radii) visible += rad > 0;
+  double cov = 0;
+  for (float a : r.alpha.data) cov += a;
+  std::printf("gaussians %zu (visible %zu), %dx%d, threads %d, tile entries %zu, coverage %.1f%%\n",
+              o.gaussians, visible, o.width, o.height, omp_get_max_threads(), r.point_list.size(),
+              100.0 * cov / double(r.alpha.data.size()));
+  const double mf = median(fwd);
+  std::printf("forward: median %.2f ms, min %.2f ms over %d frames (CPU time %.1f ms/frame)\n", mf,
+              *std::min_element(fwd.begin(), fwd.end()), o.frames, cpu_fwd);
+  if (o.backward) {
+    const double mb = median(both);
+    std::printf(
+        "forward+backward: median %.2f ms, min %.2f ms over %d frames (CPU time %.1f ms/frame)\n",
+        mb, *std::min_element(both.begin(), both.end()), o.frames, cpu_both);
+    std::printf("forward %.1f FPS, forward+backward %.2f ms\n", 1000.0 / mf, mb);
+  } else {
+    std::printf("forward %.1f FPS\n", 1000.0 / mf);
+  }
+}
+
+ks::cli::CommandGroup group(900, [](CLI::App& app) {
+  auto* bench = app.add_subcommand("bench", "Benchmarks");
+  bench->require_subcommand(1);
+  auto* sub = bench->add_subcommand(
+      "raster", "Rasterizer speed on a reproducible avatar-like Gaussian cloud (portrait framing)");
+  auto o = std::make_shared<Opts>();
+  sub->add_option("--gaussians", o->gaussians, "number of Gaussians")->capture_default_str();
+  sub->add_option("--width", o->width, "image width")->capture_default_str();
+  sub->add_option("--height", o->height, "image height")->capture_default_str();
+  sub->add_flag("--backward", o->backward, "also time forward + backward");
+  sub->add_option("--frames", o->frames, "timed frames (median reported)")->capture_default_str();
+  sub->add_option("--threads", o->threads, "OpenMP threads (0 = default)");
+  sub->add_option("--save-ply", o->save_ply, "also write the cloud as a 3DGS .ply");
+  sub->add_option("--save-camera", o->save_camera, "also write the camera as JSON");
+  sub->callback([o] { run(*o); });
+});
+
+}  // namespace
