@@ -1,5 +1,6 @@
 #include "reconstruct/mlp.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -77,24 +78,38 @@ void MlpGradsT<T>::pack(std::vector<T>& out) const {
   }
 }
 
+namespace {
+// Points are processed in column blocks, one OpenMP task per block; Eigen runs single-threaded
+// inside (it does not nest its own threads in a parallel region). Per-block weight gradients are
+// summed in block order, so results do not depend on the thread count.
+constexpr Eigen::Index kBlock = 2048;
+}  // namespace
+
 template <typename T>
 void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>& X,
                  MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y) {
   const size_t L = m.W.size();
+  const Eigen::Index n = X.cols();
   cache.act.resize(L);
   cache.act[0] = X;
-  for (size_t l = 0; l < L; ++l) {
-    const auto& in = cache.act[l];
-    if (l + 1 < L) {
-      auto& out = cache.act[l + 1];
-      out.resize(m.W[l].rows(), in.cols());
-      out.noalias() = m.W[l] * in;
-      out.colwise() += m.b[l];
-      out = out.cwiseMax(T(0));
-    } else {
-      Y.resize(m.W[l].rows(), in.cols());
-      Y.noalias() = m.W[l] * in;
-      Y.colwise() += m.b[l];
+  for (size_t l = 1; l < L; ++l) cache.act[l].resize(m.W[l - 1].rows(), n);
+  Y.resize(m.W[L - 1].rows(), n);
+  const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
+#pragma omp parallel for schedule(static) if (blocks > 1)
+  for (Eigen::Index bi = 0; bi < blocks; ++bi) {
+    const Eigen::Index c0 = bi * kBlock, len = std::min(kBlock, n - c0);
+    for (size_t l = 0; l < L; ++l) {
+      auto in = cache.act[l].middleCols(c0, len);
+      if (l + 1 < L) {
+        auto out = cache.act[l + 1].middleCols(c0, len);
+        out.noalias() = m.W[l] * in;
+        out.colwise() += m.b[l];
+        out = out.cwiseMax(T(0));
+      } else {
+        auto out = Y.middleCols(c0, len);
+        out.noalias() = m.W[l] * in;
+        out.colwise() += m.b[l];
+      }
     }
   }
 }
@@ -103,24 +118,41 @@ template <typename T>
 void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
                   const Eigen::Ref<const typename MlpT<T>::Mat>& dY, MlpGradsT<T>& g,
                   typename MlpT<T>::Mat* dX) {
+  using Mat = typename MlpT<T>::Mat;
+  using Vec = typename MlpT<T>::Vec;
   const int L = int(m.W.size());
   if (g.W.size() != m.W.size()) g.zero_like(m);
-  // delta = dL/d(pre-activation output of layer l)
-  typename MlpT<T>::Mat delta = dY;
-  for (int l = L - 1; l >= 0; --l) {
-    const auto& in = cache.act[l];
-    g.W[l].noalias() += delta * in.transpose();
-    g.b[l] += delta.rowwise().sum();
-    if (l == 0 && !dX) break;
-    typename MlpT<T>::Mat din;
-    din.noalias() = m.W[l].transpose() * delta;
-    if (l > 0) {
-      // ReLU: in = max(pre, 0); gradient passes where in > 0.
-      delta = (in.array() > T(0)).select(din, T(0));
-    } else {
-      *dX = std::move(din);
+  const Eigen::Index n = dY.cols();
+  if (dX) dX->resize(m.W[0].cols(), n);
+  const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
+  std::vector<std::vector<Mat>> gW;
+  gW.resize(size_t(blocks), std::vector<Mat>(size_t(L)));
+  std::vector<std::vector<Vec>> gb;
+  gb.resize(size_t(blocks), std::vector<Vec>(size_t(L)));
+#pragma omp parallel for schedule(static) if (blocks > 1)
+  for (Eigen::Index bi = 0; bi < blocks; ++bi) {
+    const Eigen::Index c0 = bi * kBlock, len = std::min(kBlock, n - c0);
+    // delta = dL/d(pre-activation output of layer l)
+    Mat delta = dY.middleCols(c0, len), din;
+    for (int l = L - 1; l >= 0; --l) {
+      const auto in = cache.act[size_t(l)].middleCols(c0, len);
+      gW[size_t(bi)][size_t(l)].noalias() = delta * in.transpose();
+      gb[size_t(bi)][size_t(l)] = delta.rowwise().sum();
+      if (l == 0 && !dX) break;
+      din.noalias() = m.W[size_t(l)].transpose() * delta;
+      if (l > 0) {
+        // ReLU: in = max(pre, 0); the gradient passes where in > 0.
+        delta = (in.array() > T(0)).select(din, T(0));
+      } else {
+        dX->middleCols(c0, len) = din;
+      }
     }
   }
+  for (Eigen::Index bi = 0; bi < blocks; ++bi)
+    for (int l = 0; l < L; ++l) {
+      g.W[size_t(l)] += gW[size_t(bi)][size_t(l)];
+      g.b[size_t(l)] += gb[size_t(bi)][size_t(l)];
+    }
 }
 
 template struct MlpT<float>;

@@ -1,0 +1,117 @@
+// `kinesplat reconstruct DATASET --out AVATAR`: the avatar fit (docs/reconstruct.md).
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "avatar/avatar.hpp"
+#include "cli/registry.hpp"
+#include "core/error.hpp"
+#include "core/fileio.hpp"
+#include "dataset/dataset.hpp"
+#include "evaluate/evaluate.hpp"
+#include "reconstruct/density.hpp"
+#include "reconstruct/trainer.hpp"
+
+#if __has_include("reconstruct/density_ops.hpp")
+#include "reconstruct/density_ops.hpp"
+#define KS_HAVE_DENSITY_FACTORY 1
+#endif
+
+namespace {
+
+struct Args {
+  std::string dataset, out, laplacian = "semantic", density = "off", eval_dataset, eval_out;
+  ks::TrainOptions opt;
+  bool perturb = false, quiet = false;
+  float eval_scale = 1.f;
+};
+
+ks::cli::CommandGroup group(40, [](CLI::App& app) {
+  auto args = std::make_shared<Args>();
+  auto* sub = app.add_subcommand("reconstruct", "Fit an animatable Gaussian avatar to a dataset");
+  sub->add_option("dataset", args->dataset, "Dataset directory (dataset.json + images)")
+      ->required();
+  sub->add_option("--out,-o", args->out, "Output avatar file (.ksavatar)")->required();
+  sub->add_option("--iters", args->opt.iterations, "Optimisation steps")->capture_default_str();
+  sub->add_option("--scale", args->opt.scale, "Training resolution relative to the images")
+      ->capture_default_str();
+  sub->add_option("--subdivide", args->opt.subdivide, "Loop subdivision levels of the template")
+      ->capture_default_str();
+  sub->add_option("--laplacian", args->laplacian, "Laplacian regulariser: semantic|uniform|none")
+      ->capture_default_str();
+  sub->add_option("--density", args->density, "Density control: gpdc|vertex|naive|off")
+      ->capture_default_str();
+  sub->add_flag("--perturb", args->perturb,
+                "Imperfect prior: colour drift, pose jitter and small warps per frame");
+  sub->add_option("--seed", args->opt.seed, "Random seed")->capture_default_str();
+  sub->add_option("--w-l1", args->opt.w_l1, "Weight of the L1 image loss")->capture_default_str();
+  sub->add_option("--w-ssim", args->opt.w_ssim, "Weight of 1 - SSIM")->capture_default_str();
+  sub->add_option("--w-mask", args->opt.w_mask, "Weight of the mask loss")->capture_default_str();
+  sub->add_option("--w-offset", args->opt.w_offset, "Weight of the offset L2")
+      ->capture_default_str();
+  sub->add_option("--w-lap-pos", args->opt.w_lap_position, "Weight of the position Laplacian")
+      ->capture_default_str();
+  sub->add_option("--w-lap-color", args->opt.w_lap_color, "Weight of the colour Laplacian")
+      ->capture_default_str();
+  sub->add_option("--lr-triplane", args->opt.lr_triplane, "Triplane learning rate")
+      ->capture_default_str();
+  sub->add_option("--lr-mlp", args->opt.lr_mlp, "MLP learning rate")->capture_default_str();
+  sub->add_option("--triplane-res", args->opt.triplane_res, "Triplane resolution")
+      ->capture_default_str();
+  sub->add_option("--hidden", args->opt.hidden, "Hidden width of the decoder MLPs")
+      ->capture_default_str();
+  sub->add_option("--max-offset", args->opt.max_offset, "Largest offset from the template (m)")
+      ->capture_default_str();
+  sub->add_option("--log-every", args->opt.log_every, "Print the losses every N iterations")
+      ->capture_default_str();
+  sub->add_option("--eval", args->eval_dataset,
+                  "After training, evaluate on this dataset (e.g. the test split)");
+  sub->add_option("--eval-out", args->eval_out, "Write the evaluation metrics JSON here");
+  sub->add_option("--eval-scale", args->eval_scale, "Evaluation resolution relative to images")
+      ->capture_default_str();
+  sub->add_flag("--quiet,-q", args->quiet, "No progress bar");
+  sub->callback([args] {
+    Args& a = *args;
+    a.opt.laplacian = ks::parse_laplacian_mode(a.laplacian);
+    a.opt.perturb.enabled = a.perturb;
+    a.opt.progress = !a.quiet;
+    std::unique_ptr<ks::DensityControl> density;
+    if (a.density != "off") {
+#ifdef KS_HAVE_DENSITY_FACTORY
+      density = ks::make_density_control(a.density);
+      a.opt.density = density.get();
+#else
+      throw ks::Error("--density " + a.density +
+                      ": density control is not built into this version (use --density off)");
+#endif
+    }
+    const ks::Dataset ds = ks::Dataset::load(a.dataset);
+    const ks::BodyModel model = ks::load_dataset_body_model(ds, a.dataset);
+    const auto frames =
+        ks::load_training_frames(ds, a.dataset, a.opt.scale, a.opt.perturb, a.opt.seed);
+    ks::TrainReport rep;
+    ks::Avatar av = ks::train_avatar(model, ds, frames, a.opt, &rep);
+    av.metadata["density"] = a.density;
+    ks::save_avatar(a.out, av);
+    std::printf("avatar: %s (%d Gaussians)\n", a.out.c_str(), av.num_gaussians());
+    std::printf("train: %d iterations in %.1f s (%.1f ms/iteration), train PSNR %.2f dB\n",
+                rep.iterations, rep.seconds, rep.ms_per_iteration, rep.final_psnr);
+    if (!a.eval_dataset.empty()) {
+      const ks::Dataset test = ks::Dataset::load(a.eval_dataset);
+      const ks::EvalReport er =
+          ks::evaluate_avatar(av, test, a.eval_dataset, a.eval_scale, "", !a.quiet);
+      nlohmann::json j = er.to_json(test);
+      j["train"] = {{"iterations", rep.iterations},
+                    {"seconds", rep.seconds},
+                    {"ms_per_iteration", rep.ms_per_iteration},
+                    {"num_gaussians", rep.num_gaussians}};
+      if (!a.eval_out.empty()) ks::write_json_atomic(a.eval_out, j);
+      std::printf("eval: PSNR %.2f SSIM %.4f | masked PSNR %.2f SSIM %.4f (%zu frames)\n",
+                  er.mean.psnr, er.mean.ssim, er.mean.psnr_masked, er.mean.ssim_masked,
+                  er.frames.size());
+    }
+  });
+});
+
+}  // namespace

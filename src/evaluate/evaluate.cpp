@@ -1,0 +1,110 @@
+#include "evaluate/evaluate.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "avatar/pose.hpp"
+#include "core/error.hpp"
+#include "core/progress.hpp"
+#include "io/image_io.hpp"
+#include "raster/rasterizer.hpp"
+#include "reconstruct/trainer.hpp"
+
+namespace ks {
+
+namespace {
+Image resize_area(const Image& in, int w, int h) {
+  if (in.width == w && in.height == h) return in;
+  cv::Mat src(in.height, in.width, CV_32FC(in.channels), const_cast<float*>(in.data.data()));
+  Image out(w, h, in.channels);
+  cv::Mat dst(h, w, CV_32FC(in.channels), out.data.data());
+  cv::resize(src, dst, cv::Size(w, h), 0, 0, cv::INTER_AREA);
+  return out;
+}
+}  // namespace
+
+EvalReport evaluate_avatar(const Avatar& avatar, const Dataset& ds, const std::string& dir,
+                           float scale, const std::string& render_dir, bool show_progress) {
+  if (ds.frames.empty()) throw Error("evaluate: dataset " + dir + " has no frames");
+  if (!(scale > 0.f && scale <= 4.f)) throw Error("evaluate: scale must be in (0, 4]");
+  EvalReport rep;
+  RasterSettings rs;
+  for (int k = 0; k < 3; ++k) rs.background[k] = ds.background[k];
+  RasterResult rr;
+  Gaussians posed;
+  Progress progress("evaluate", long(ds.frames.size()));
+  double render_s = 0;
+  int masked_frames = 0;
+  for (size_t i = 0; i < ds.frames.size(); ++i) {
+    const DatasetFrame& fr = ds.frames[i];
+    Image img = ds.load_image(dir, i);
+    Image mask = ds.load_mask(dir, i);
+    const int w = std::max(8, int(std::lround(img.width * scale)));
+    const int h = std::max(8, int(std::lround(img.height * scale)));
+    img = resize_area(img, w, h);
+    mask = resize_area(mask, w, h);
+    const Camera cam = scale_camera(fr.camera, w, h);
+    BodyParams p = fr.pose;
+    p.betas = ds.betas;
+    const auto t0 = std::chrono::steady_clock::now();
+    pose_avatar(avatar, p, posed);
+    rasterize_forward(posed, cam, rs, rr);
+    render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const ImageMetrics m = compute_metrics(rr.color, img, mask);
+    rep.frames.push_back(m);
+    rep.mean.psnr += m.psnr;
+    rep.mean.ssim += m.ssim;
+    if (!std::isnan(m.psnr_masked)) {
+      rep.mean.psnr_masked += m.psnr_masked;
+      rep.mean.ssim_masked += m.ssim_masked;
+      ++masked_frames;
+    }
+    if (!render_dir.empty()) {
+      char name[64];
+      std::snprintf(name, sizeof name, "render_%04zu.png", i);
+      write_png((std::filesystem::path(render_dir) / name).string(), rr.color);
+    }
+    if (show_progress) progress.update(long(i + 1));
+  }
+  if (show_progress) progress.finish();
+  const double nf = double(ds.frames.size());
+  rep.mean.psnr /= nf;
+  rep.mean.ssim /= nf;
+  rep.mean.psnr_masked = masked_frames ? rep.mean.psnr_masked / masked_frames : NAN;
+  rep.mean.ssim_masked = masked_frames ? rep.mean.ssim_masked / masked_frames : NAN;
+  rep.ms_per_render = 1000.0 * render_s / nf;
+  return rep;
+}
+
+nlohmann::json EvalReport::to_json(const Dataset& ds) const {
+  auto num = [](double v) -> nlohmann::json {
+    if (std::isnan(v)) return nullptr;
+    if (std::isinf(v)) return 1e9;
+    return v;
+  };
+  nlohmann::json j;
+  nlohmann::json arr = nlohmann::json::array();
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const auto& m = frames[i];
+    arr.push_back({{"frame", i},
+                   {"image", i < ds.frames.size() ? ds.frames[i].image : ""},
+                   {"psnr", num(m.psnr)},
+                   {"ssim", num(m.ssim)},
+                   {"psnr_masked", num(m.psnr_masked)},
+                   {"ssim_masked", num(m.ssim_masked)}});
+  }
+  j["frames"] = arr;
+  j["mean"] = {{"psnr", num(mean.psnr)},
+               {"ssim", num(mean.ssim)},
+               {"psnr_masked", num(mean.psnr_masked)},
+               {"ssim_masked", num(mean.ssim_masked)}};
+  j["num_frames"] = frames.size();
+  j["ms_per_render"] = ms_per_render;
+  return j;
+}
+
+}  // namespace ks

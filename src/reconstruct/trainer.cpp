@@ -1,0 +1,514 @@
+#include "reconstruct/trainer.hpp"
+
+#include <Eigen/SparseCore>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <numeric>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "core/error.hpp"
+#include "core/progress.hpp"
+#include "mesh/trimesh.hpp"
+#include "raster/rasterizer.hpp"
+#include "reconstruct/adam.hpp"
+#include "reconstruct/lbs.hpp"
+#include "reconstruct/mlp.hpp"
+#include "reconstruct/triplane.hpp"
+
+namespace ks {
+
+namespace {
+
+constexpr float kSH0 = 0.28209479177387814f;
+using SpMat = Eigen::SparseMatrix<double, Eigen::RowMajor>;
+
+Image resize_area(const Image& in, int w, int h) {
+  if (in.width == w && in.height == h) return in;
+  cv::Mat src(in.height, in.width, CV_32FC(in.channels), const_cast<float*>(in.data.data()));
+  Image out(w, h, in.channels);
+  cv::Mat dst(h, w, CV_32FC(in.channels), out.data.data());
+  cv::resize(src, dst, cv::Size(w, h), 0, 0, cv::INTER_AREA);
+  return out;
+}
+
+// Small affine warp (rotation about the centre + translation), border = `fill`.
+Image warp(const Image& in, double angle_deg, double dx, double dy, const float* fill) {
+  cv::Mat src(in.height, in.width, CV_32FC(in.channels), const_cast<float*>(in.data.data()));
+  Image out(in.width, in.height, in.channels);
+  cv::Mat dst(in.height, in.width, CV_32FC(in.channels), out.data.data());
+  cv::Mat M =
+      cv::getRotationMatrix2D(cv::Point2f(in.width * 0.5f, in.height * 0.5f), angle_deg, 1.0);
+  M.at<double>(0, 2) += dx;
+  M.at<double>(1, 2) += dy;
+  cv::Scalar border(fill[0], in.channels > 1 ? fill[1] : 0, in.channels > 2 ? fill[2] : 0);
+  cv::warpAffine(src, dst, M, dst.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT, border);
+  return out;
+}
+
+SpMat identity_stencil(int n) {
+  SpMat S(n, n);
+  S.setIdentity();
+  return S;
+}
+
+double mean_edge_length(const Eigen::MatrixXd& V, const Eigen::MatrixXi& F) {
+  double s = 0;
+  for (int f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) s += (V.row(F(f, k)) - V.row(F(f, (k + 1) % 3))).norm();
+  return F.rows() ? s / (3.0 * F.rows()) : 0.01;
+}
+
+// Everything that lives per vertex and is rebuilt when density control changes the vertex set.
+struct Fit {
+  const BodyModel* model = nullptr;
+  const TrainOptions* opt = nullptr;
+  TrainerState state;
+  SpMat S;  // N x V_model: template vertex <- body model vertices (pose correctives)
+  std::vector<float> xs, ys, zs;
+  Laplacian lap;
+  bool resized = false;
+
+  void rebuild() {
+    const int n = state.num_vertices();
+    xs.resize(n), ys.resize(n), zs.resize(n);
+    for (int i = 0; i < n; ++i) {
+      xs[i] = float(state.anchors(i, 0));
+      ys[i] = float(state.anchors(i, 1));
+      zs[i] = float(state.anchors(i, 2));
+    }
+    if (opt->laplacian != LaplacianMode::kNone) {
+      const auto adj = vertex_adjacency(state.faces, n);
+      lap = build_laplacian(adj, state.part_labels, opt->laplacian, opt->part_strength);
+    } else {
+      lap = Laplacian{};
+    }
+  }
+  static void on_resize(void* ctx, const SpMat& stencil) {
+    Fit* f = static_cast<Fit*>(ctx);
+    f->S = SpMat(stencil * f->S);
+    f->rebuild();
+    f->resized = true;
+  }
+};
+
+// Decoded canonical attributes and the raw outputs needed for the backward pass.
+struct Decoder {
+  Triplane tp;
+  Mlp geo, app;
+  MlpCache geo_cache, app_cache;
+  Mlp::Mat feats_unused;
+  std::vector<float> feats;  // N x F
+  Mlp::Mat Yg, Ya;
+  std::vector<float> tanh_off;  // 3N: tanh of the raw offsets
+  float base_log_scale = 0, init_opacity_logit = 0;
+  float sh_init[3] = {0, 0, 0};
+  int geo_out = 9;
+
+  void decode(const Fit& fit, const TrainOptions& opt, Gaussians& g, std::vector<float>& offsets) {
+    const int n = fit.state.num_vertices();
+    const int F = tp.feature_dim();
+    feats.resize(size_t(n) * F);
+    triplane_forward(tp, fit.xs.data(), fit.ys.data(), fit.zs.data(), n, feats.data());
+    Eigen::Map<const Mlp::Mat> X(feats.data(), F, n);
+    mlp_forward(geo, X, geo_cache, Yg);
+    mlp_forward(app, X, app_cache, Ya);
+    g.sh_degree = 0;
+    g.resize(n);
+    offsets.resize(3 * size_t(n));
+    tanh_off.resize(3 * size_t(n));
+    const int sdim = opt.isotropic ? 1 : 3;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      const float* y = Yg.data() + size_t(i) * geo_out;
+      for (int k = 0; k < 3; ++k) {
+        const float t = std::tanh(y[k]);
+        tanh_off[3 * size_t(i) + k] = t;
+        offsets[3 * size_t(i) + k] = opt.max_offset * t;
+        g.means[3 * size_t(i) + k] = float(fit.state.anchors(i, k)) + opt.max_offset * t;
+        g.log_scales[3 * size_t(i) + k] =
+            base_log_scale + y[3 + (sdim == 1 ? 0 : k)] + fit.state.log_scale_bias[i];
+      }
+      g.quats[4 * size_t(i)] = 1.f + y[3 + sdim];
+      for (int k = 1; k < 4; ++k) g.quats[4 * size_t(i) + k] = y[3 + sdim + k];
+      g.opacity_logits[i] = init_opacity_logit + y[7 + sdim];
+      const float* a = Ya.data() + size_t(i) * 3;
+      for (int k = 0; k < 3; ++k) g.sh[3 * size_t(i) + k] = sh_init[k] + a[k];
+    }
+  }
+};
+
+}  // namespace
+
+Camera scale_camera(const Camera& cam, int width, int height) {
+  Camera c = cam;
+  const double sx = double(width) / cam.width, sy = double(height) / cam.height;
+  c.width = width;
+  c.height = height;
+  c.fx *= sx;
+  c.cx *= sx;
+  c.fy *= sy;
+  c.cy *= sy;
+  return c;
+}
+
+std::vector<TrainFrame> load_training_frames(const Dataset& ds, const std::string& dir, float scale,
+                                             const PerturbOptions& perturb, uint64_t seed) {
+  if (!(scale > 0.f && scale <= 4.f))
+    throw Error("training scale must be in (0, 4], got " + std::to_string(scale));
+  if (ds.frames.empty()) throw Error("dataset " + dir + " has no frames");
+  std::vector<TrainFrame> out(ds.frames.size());
+  for (size_t i = 0; i < ds.frames.size(); ++i) {
+    const DatasetFrame& fr = ds.frames[i];
+    Image img = ds.load_image(dir, i);
+    Image mask = ds.load_mask(dir, i);
+    TrainFrame& t = out[i];
+    t.pose = fr.pose;
+    t.pose.betas = ds.betas;
+    if (perturb.enabled) {
+      std::mt19937_64 rng(seed * 1000003ull + i * 7919ull + 17);
+      std::uniform_real_distribution<double> u(-1.0, 1.0);
+      std::normal_distribution<double> nd(0.0, 1.0);
+      // Colour drift.
+      float gain[3], off[3];
+      for (int k = 0; k < 3; ++k) {
+        gain[k] = 1.f + perturb.color_drift * float(u(rng));
+        off[k] = 0.5f * perturb.color_drift * float(u(rng));
+      }
+      // Warp (image and mask together: the prior is misaligned with its pose).
+      const double ang = perturb.warp_degrees * u(rng);
+      const double dx = perturb.warp_pixels * u(rng), dy = perturb.warp_pixels * u(rng);
+      img = warp(img, ang, dx, dy, ds.background);
+      const float zero[3] = {0, 0, 0};
+      mask = warp(mask, ang, dx, dy, zero);
+      for (size_t p = 0; p < img.pixel_count(); ++p)
+        for (int k = 0; k < 3; ++k) {
+          float& v = img.data[3 * p + k];
+          if (mask.data[p] > 0.f) {
+            const float d = std::clamp(gain[k] * v + off[k], 0.f, 1.f);
+            v = v + mask.data[p] * (d - v);  // drift the person, keep the background
+          }
+        }
+      // Pose jitter on the body joints (not the global orientation).
+      for (int k = 0; k < t.pose.body_pose.size(); ++k)
+        t.pose.body_pose[k] += perturb.pose_jitter * nd(rng);
+    }
+    const int w = std::max(8, int(std::lround(img.width * scale)));
+    const int h = std::max(8, int(std::lround(img.height * scale)));
+    t.image = resize_area(img, w, h);
+    t.mask = resize_area(mask, w, h);
+    t.camera = scale_camera(fr.camera, w, h);
+  }
+  return out;
+}
+
+BodyModel load_dataset_body_model(const Dataset& ds, const std::string& dir) {
+  if (ds.body_model == "default" || ds.body_model.empty()) return default_body_model();
+  std::filesystem::path p(ds.body_model);
+  if (p.is_relative() && std::filesystem::exists(std::filesystem::path(dir) / p))
+    return load_body_model((std::filesystem::path(dir) / p).string());
+  return load_body_model(ds.body_model);
+}
+
+Avatar train_avatar(const BodyModel& model, const Dataset& ds,
+                    const std::vector<TrainFrame>& frames, const TrainOptions& opt,
+                    TrainReport* report) {
+  if (frames.empty()) throw Error("reconstruct: no training frames");
+  if (opt.iterations < 1) throw Error("reconstruct: --iters must be >= 1");
+  if (opt.subdivide < 0 || opt.subdivide > 4)
+    throw Error("reconstruct: --subdivide must be in [0, 4]");
+
+  // Template: the body at its betas in rest pose, Loop-subdivided.
+  BodyParams rest;
+  rest.betas = ds.betas;
+  const BodyState rest_state = body_forward(model, rest);
+  TriMesh base{rest_state.rest_vertices, model.faces};
+
+  Fit fit;
+  fit.model = &model;
+  fit.opt = &opt;
+  TrainerState& st = fit.state;
+  if (opt.subdivide > 0) {
+    Subdivision sub = subdivide(base, opt.subdivide, true);
+    st.anchors = sub.mesh.V;
+    st.faces = sub.mesh.F;
+    fit.S = sub.S;
+  } else {
+    st.anchors = base.V;
+    st.faces = base.F;
+    fit.S = identity_stencil(int(base.V.rows()));
+  }
+  const int n0 = st.num_vertices();
+  {
+    const Eigen::MatrixXd W = fit.S * model.weights;
+    std::vector<int32_t> sj;
+    top_k_skin_weights(W, 4, sj, st.skin_weights);
+    st.skin_joints.assign(sj.begin(), sj.end());
+    if (int(model.part_labels.size()) == model.num_vertices())
+      st.part_labels = carry_labels(fit.S, model.part_labels);
+    else
+      st.part_labels.assign(n0, 0);
+  }
+  st.log_scale_bias.assign(n0, 0.f);
+  st.grad2d_accum.assign(n0, 0.f);
+  st.grad2d_count.assign(n0, 0);
+  st.max_radius.assign(n0, 0);
+  st.total_iterations = opt.iterations;
+  st.on_resize = &Fit::on_resize;
+  st.on_resize_ctx = &fit;
+  fit.rebuild();
+
+  // Networks.
+  Decoder dec;
+  {
+    const Eigen::Vector3d lo = st.anchors.colwise().minCoeff(),
+                          hi = st.anchors.colwise().maxCoeff();
+    const double pad = 0.05 + opt.max_offset;
+    const float blo[3] = {float(lo.x() - pad), float(lo.y() - pad), float(lo.z() - pad)};
+    const float bhi[3] = {float(hi.x() + pad), float(hi.y() + pad), float(hi.z() + pad)};
+    dec.tp.init(opt.triplane_res, opt.triplane_channels, blo, bhi, opt.seed * 3 + 1, 0.1f);
+  }
+  const int sdim = opt.isotropic ? 1 : 3;
+  dec.geo_out = 3 + sdim + 4 + 1;
+  const int F = dec.tp.feature_dim();
+  dec.geo.init({F, opt.hidden, opt.hidden, dec.geo_out}, opt.seed * 3 + 2, 0.01f);
+  dec.app.init({F, opt.hidden, opt.hidden, 3}, opt.seed * 3 + 3, 0.01f);
+  dec.base_log_scale = float(std::log(opt.scale_factor * mean_edge_length(st.anchors, st.faces)));
+  dec.init_opacity_logit = std::log(opt.init_opacity / (1.f - opt.init_opacity));
+  {
+    // Initial colour: the mean foreground colour of the training frames.
+    double c[3] = {0, 0, 0}, wsum = 0;
+    for (const auto& fr : frames)
+      for (size_t p = 0; p < fr.mask.pixel_count(); ++p) {
+        const double m = fr.mask.data[p];
+        for (int k = 0; k < 3; ++k) c[k] += m * fr.image.data[3 * p + k];
+        wsum += m;
+      }
+    for (int k = 0; k < 3; ++k) dec.sh_init[k] = wsum > 0 ? float((c[k] / wsum - 0.5) / kSH0) : 0.f;
+  }
+  std::vector<float> geo_params, app_params;
+  dec.geo.pack(geo_params);
+  dec.app.pack(app_params);
+
+  Adam adam;
+  adam.total_steps = opt.iterations;
+  adam.final_fraction = opt.lr_final_fraction;
+  adam.add_group("triplane", &dec.tp.planes, opt.lr_triplane);
+  adam.add_group("geometry_mlp", &geo_params, opt.lr_mlp);
+  adam.add_group("appearance_mlp", &app_params, opt.lr_mlp);
+
+  // Buffers reused across iterations.
+  Gaussians canon, posed;
+  std::vector<float> offsets, pose_off, dmeans_c, dquats_c, doff, dsh, dplanes, geo_grad, app_grad;
+  LbsCache lbs_cache;
+  RasterResult rr;
+  RasterGrads rg;
+  RasterSettings rs;
+  for (int k = 0; k < 3; ++k) rs.background[k] = ds.background[k];
+  Image dcolor, dalpha;
+  MlpGrads ggeo, gapp;
+  Mlp::Mat dXg, dXa, dYg, dYa;
+
+  std::mt19937_64 rng(opt.seed);
+  std::vector<int> order(frames.size());
+  std::iota(order.begin(), order.end(), 0);
+  size_t order_pos = order.size();
+
+  Progress progress("reconstruct", opt.iterations);
+  double loss_ema = 0, psnr_ema = 0;
+  float last_loss = 0;
+  for (int it = 0; it < opt.iterations; ++it) {
+    if (order_pos >= order.size()) {
+      std::shuffle(order.begin(), order.end(), rng);
+      order_pos = 0;
+    }
+    const TrainFrame& fr = frames[size_t(order[order_pos++])];
+    const int n = st.num_vertices();
+    dec.geo.unpack(geo_params);
+    dec.app.unpack(app_params);
+    dec.decode(fit, opt, canon, offsets);
+
+    // Pose.
+    const BodyState bs = body_forward(model, fr.pose);
+    pose_off.assign(3 * size_t(n), 0.f);
+    if (bs.pose_offsets.size() > 0 && bs.pose_offsets.cwiseAbs().maxCoeff() > 0) {
+      const Eigen::MatrixXd po = fit.S * bs.pose_offsets;
+      for (int i = 0; i < n; ++i)
+        for (int k = 0; k < 3; ++k) pose_off[3 * size_t(i) + k] = float(po(i, k));
+    }
+    lbs_forward(canon, pose_off, st.skin_joints, st.skin_weights, bs.transforms, posed, lbs_cache);
+    rasterize_forward(posed, fr.camera, rs, rr);
+
+    // Image and mask losses.
+    const int W = fr.camera.width, H = fr.camera.height;
+    if (rr.color.width != W || rr.color.height != H || fr.image.width != W)
+      throw Error("reconstruct: render and frame sizes differ");
+    dcolor = Image(W, H, 3, 0.f);
+    dalpha = Image(W, H, 1, 0.f);
+    const size_t P = size_t(W) * H;
+    const float l1 = l1_loss<float>(rr.color.data.data(), fr.image.data.data(), 3 * P, opt.w_l1,
+                                    dcolor.data.data());
+    const float ss = ssim<float>(rr.color.data.data(), fr.image.data.data(), W, H, 3, nullptr,
+                                 -opt.w_ssim, dcolor.data.data());
+    float lmask = 0;
+    if (opt.w_mask > 0)
+      lmask = l1_loss<float>(rr.alpha.data.data(), fr.mask.data.data(), P, opt.w_mask,
+                             dalpha.data.data());
+    double mse = 0;
+    for (size_t p = 0; p < 3 * P; ++p) {
+      const double d = rr.color.data[p] - fr.image.data[p];
+      mse += d * d;
+    }
+    mse /= double(3 * P);
+
+    rasterize_backward(posed, fr.camera, rs, rr, dcolor, dalpha, rg);
+    lbs_backward(lbs_cache, rg.means, rg.quats, dmeans_c, dquats_c);
+
+    // Regularisers on offsets and colours.
+    doff.assign(3 * size_t(n), 0.f);
+    double off_l2 = 0;
+    for (size_t i = 0; i < 3 * size_t(n); ++i) {
+      off_l2 += double(offsets[i]) * offsets[i];
+      doff[i] = 2.f * opt.w_offset * offsets[i] / float(n);
+    }
+    off_l2 /= n;
+    dsh = rg.sh;
+    float lap_pos = 0, lap_col = 0;
+    if (opt.laplacian != LaplacianMode::kNone) {
+      // Position Laplacian of the anchors' displacement (the template's own differential
+      // coordinates are kept), colour Laplacian of the SH0 colours.
+      lap_pos = laplacian_loss<float>(fit.lap, offsets.data(), 3, opt.w_lap_position, doff.data());
+      lap_col = laplacian_loss<float>(fit.lap, canon.sh.data(), 3, opt.w_lap_color, dsh.data());
+    }
+    const float loss = opt.w_l1 * l1 + opt.w_ssim * (1.f - ss) + opt.w_mask * lmask +
+                       opt.w_offset * float(off_l2) + opt.w_lap_position * lap_pos +
+                       opt.w_lap_color * lap_col;
+    last_loss = loss;
+
+    // Back to the decoder outputs.
+    dYg.resize(dec.geo_out, n);
+    dYa.resize(3, n);
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      float* y = dYg.data() + size_t(i) * dec.geo_out;
+      for (int k = 0; k < 3; ++k) {
+        const float t = dec.tanh_off[3 * size_t(i) + k];
+        y[k] = (dmeans_c[3 * size_t(i) + k] + doff[3 * size_t(i) + k]) * opt.max_offset *
+               (1.f - t * t);
+      }
+      if (sdim == 1)
+        y[3] = rg.log_scales[3 * size_t(i)] + rg.log_scales[3 * size_t(i) + 1] +
+               rg.log_scales[3 * size_t(i) + 2];
+      else
+        for (int k = 0; k < 3; ++k) y[3 + k] = rg.log_scales[3 * size_t(i) + k];
+      for (int k = 0; k < 4; ++k) y[3 + sdim + k] = dquats_c[4 * size_t(i) + k];
+      y[7 + sdim] = rg.opacity_logits[i];
+      for (int k = 0; k < 3; ++k) dYa(k, i) = dsh[3 * size_t(i) + k];
+    }
+    ggeo.zero_like(dec.geo);
+    gapp.zero_like(dec.app);
+    mlp_backward(dec.geo, dec.geo_cache, dYg, ggeo, &dXg);
+    mlp_backward(dec.app, dec.app_cache, dYa, gapp, &dXa);
+    dXg += dXa;
+    dplanes.assign(dec.tp.size(), 0.f);
+    triplane_backward(dec.tp, fit.xs.data(), fit.ys.data(), fit.zs.data(), n, dXg.data(),
+                      dplanes.data());
+    ggeo.pack(geo_grad);
+    gapp.pack(app_grad);
+    adam.step({&dplanes, &geo_grad, &app_grad});
+
+    // Density-control statistics and hook.
+    for (int i = 0; i < n; ++i) {
+      if (rr.radii[i] <= 0) continue;
+      const float gx = rg.means2d[2 * size_t(i)], gy = rg.means2d[2 * size_t(i) + 1];
+      st.grad2d_accum[i] += std::sqrt(gx * gx + gy * gy);
+      st.grad2d_count[i] += 1;
+      st.max_radius[i] = std::max(st.max_radius[i], rr.radii[i]);
+    }
+    if (opt.density) {
+      st.iteration = it;
+      st.canonical = canon;
+      opt.density->step(it, st);
+    }
+
+    const double psnr = 10.0 * std::log10(1.0 / std::max(mse, 1e-12));
+    loss_ema = it == 0 ? loss : 0.9 * loss_ema + 0.1 * loss;
+    psnr_ema = it == 0 ? psnr : 0.9 * psnr_ema + 0.1 * psnr;
+    if (opt.progress) {
+      char buf[96];
+      std::snprintf(buf, sizeof buf, "loss %.4f psnr %.2f N %d", loss_ema, psnr_ema,
+                    st.num_vertices());
+      progress.update(it + 1, buf);
+    }
+    if (opt.log_every > 0 && (it % opt.log_every == 0 || it + 1 == opt.iterations))
+      std::fprintf(stderr, "it %d loss %.5f l1 %.4f ssim %.4f mask %.4f psnr %.2f\n", it, loss, l1,
+                   ss, lmask, psnr);
+  }
+  if (opt.progress) progress.finish();
+
+  // Bake the final canonical attributes.
+  dec.geo.unpack(geo_params);
+  dec.app.unpack(app_params);
+  dec.decode(fit, opt, canon, offsets);
+  const int n = st.num_vertices();
+
+  Avatar av;
+  av.body_kind = model.kind_name();
+  av.body_model = ds.body_model;
+  av.betas = ds.betas;
+  av.parents = model.parents;
+  av.joint_names = model.joint_names;
+  av.rest_joints = rest_state.rest_joints;
+  av.template_vertices = st.anchors;
+  av.template_faces = st.faces;
+  av.gaussians = canon;
+  // Normalise quaternions for playback.
+  for (int i = 0; i < n; ++i) {
+    float* q = av.gaussians.quats.data() + 4 * size_t(i);
+    const float l = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (l > 0)
+      for (int k = 0; k < 4; ++k) q[k] /= l;
+  }
+  av.anchors.resize(3 * size_t(n));
+  for (int i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) av.anchors[3 * size_t(i) + k] = float(st.anchors(i, k));
+  av.skin_joints.assign(st.skin_joints.begin(), st.skin_joints.end());
+  av.skin_weights = st.skin_weights;
+  av.part_labels.assign(st.part_labels.begin(), st.part_labels.end());
+  if (model.posedirs.size() > 0 && model.posedirs.cwiseAbs().maxCoeff() > 0) {
+    const int Pd = int(model.posedirs.cols());
+    const int V = model.num_vertices();
+    av.posedirs.resize(3 * size_t(n), Pd);
+    for (int k = 0; k < 3; ++k) {
+      Eigen::MatrixXd Pk(V, Pd);
+      for (int v = 0; v < V; ++v) Pk.row(v) = model.posedirs.row(3 * v + k);
+      const Eigen::MatrixXd Qk = fit.S * Pk;
+      for (int i = 0; i < n; ++i) av.posedirs.row(3 * i + k) = Qk.row(i).cast<float>();
+    }
+  }
+  av.metadata = nlohmann::json{
+      {"trainer", "kinesplat reconstruct"},
+      {"iterations", opt.iterations},
+      {"scale", opt.scale},
+      {"subdivide", opt.subdivide},
+      {"laplacian", opt.laplacian == LaplacianMode::kSemantic  ? "semantic"
+                    : opt.laplacian == LaplacianMode::kUniform ? "uniform"
+                                                               : "none"},
+      {"perturb", opt.perturb.enabled},
+      {"seed", opt.seed},
+      {"frames", frames.size()},
+  };
+  if (report) {
+    report->iterations = opt.iterations;
+    report->seconds = progress.elapsed_seconds();
+    report->ms_per_iteration = 1000.0 * report->seconds / opt.iterations;
+    report->final_loss = last_loss;
+    report->final_psnr = float(psnr_ema);
+    report->num_gaussians = n;
+  }
+  return av;
+}
+
+}  // namespace ks

@@ -1,0 +1,93 @@
+#pragma once
+// The avatar fit (SinGS GPGS / SIAvatar): Gaussians anchored to the vertices of the
+// Loop-subdivided body template in rest pose, attributes from a triplane decoded by two small
+// MLPs (geometry: offset, log-scale, rotation, opacity; appearance: SH degree-0 colour), posed
+// by linear blend skinning to each frame, rendered by the differentiable rasterizer, fitted with
+// 0.8 L1 + 0.2 (1 - SSIM) + mask L1 + offset L2 + (semantic) Laplacian, Adam with cosine decay.
+// Documented in docs/reconstruct.md.
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "avatar/avatar.hpp"
+#include "body/body_model.hpp"
+#include "core/camera.hpp"
+#include "core/image.hpp"
+#include "dataset/dataset.hpp"
+#include "reconstruct/density.hpp"
+#include "reconstruct/losses.hpp"
+
+namespace ks {
+
+// SinGS's imperfect-prior setting, applied to the training frames when loading (deterministic
+// per seed and frame).
+struct PerturbOptions {
+  bool enabled = false;
+  float color_drift = 0.05f;  // per-frame, per-channel gain 1 +- drift and offset +- drift/2
+  float pose_jitter = 0.03f;  // radians, std of Gaussian noise on every body-pose angle
+  float warp_pixels = 2.0f;   // max translation of the small affine warp (full-res pixels)
+  float warp_degrees = 1.0f;  // max rotation of the warp about the image centre
+};
+
+struct TrainOptions {
+  int iterations = 2000;
+  float scale = 0.5f;  // training resolution relative to the dataset's images
+  int subdivide = 2;   // Loop subdivision levels of the body template
+  LaplacianMode laplacian = LaplacianMode::kSemantic;
+  std::array<float, kNumParts> part_strength = default_part_strengths();
+  // Loss weights.
+  float w_l1 = 0.8f, w_ssim = 0.2f, w_mask = 0.1f, w_offset = 1.0f;
+  float w_lap_position = 10.0f, w_lap_color = 0.01f;
+  // Learning rates (Adam), cosine-decayed to lr_final_fraction of the start.
+  float lr_triplane = 2e-2f, lr_mlp = 2e-3f, lr_final_fraction = 0.05f;
+  // Networks.
+  int triplane_res = 128, triplane_channels = 32, hidden = 64;
+  bool isotropic = true;       // one scale per Gaussian (SIAvatar) instead of three
+  float max_offset = 0.06f;    // metres: offset = max_offset * tanh(raw)
+  float scale_factor = 0.6f;   // initial scale = scale_factor * mean template edge length
+  float init_opacity = 0.95f;  // initial opacity
+  uint64_t seed = 0;
+  PerturbOptions perturb;
+  DensityControl* density = nullptr;  // not owned; called after every step
+  bool progress = true;
+  int log_every = 0;  // > 0: print "it loss psnr" lines to stderr every this many iterations
+};
+
+// A training frame, already at training resolution (and perturbed if asked).
+struct TrainFrame {
+  Image image;  // RGB
+  Image mask;   // 1 channel
+  Camera camera;
+  BodyParams pose;  // betas included
+};
+
+// Loads every frame of the dataset at `scale` (area-averaged downsampling; cameras scaled),
+// applying the perturbations if enabled. Deterministic for a given seed.
+std::vector<TrainFrame> load_training_frames(const Dataset& ds, const std::string& dir, float scale,
+                                             const PerturbOptions& perturb, uint64_t seed);
+// Scales a camera to a new image size (intrinsics scaled per axis).
+Camera scale_camera(const Camera& cam, int width, int height);
+
+struct TrainReport {
+  int iterations = 0;
+  double seconds = 0;
+  double ms_per_iteration = 0;
+  float final_loss = 0;
+  float final_psnr = 0;  // PSNR of the last few training iterations' renders (training frames)
+  int num_gaussians = 0;
+};
+
+// Fits an avatar to a dataset (frames already loaded with load_training_frames). The result is
+// the playback avatar (canonical Gaussians baked, skin weights, skeleton, template, pose
+// correctives when the model has any) ready for save_avatar.
+Avatar train_avatar(const BodyModel& model, const Dataset& ds,
+                    const std::vector<TrainFrame>& frames, const TrainOptions& opt,
+                    TrainReport* report = nullptr);
+
+// Convenience: the body model a dataset names ("default" or a path; relative paths are taken
+// relative to the dataset directory first).
+BodyModel load_dataset_body_model(const Dataset& ds, const std::string& dir);
+
+}  // namespace ks
