@@ -332,6 +332,7 @@ BodyModel load_body_model(const std::string& path) {
   } else {
     m.part_labels = part_labels_from_weights(m.weights, m.kind);
   }
+  m.update_posedirs_flag();
   return m;
 }
 
@@ -554,7 +555,7 @@ BodyState body_forward(const BodyModel& m, const BodyParams& params) {
       for (int c = 0; c < 3; ++c) feat[9 * (j - 1) + 3 * r + c] = D(r, c);
   }
   s.pose_offsets = Eigen::MatrixXd::Zero(V, 3);
-  if (!feat.isZero(0)) {
+  if (!m.posedirs_zero && !feat.isZero(0)) {
     const Eigen::VectorXd d = m.posedirs * feat;
     for (int v = 0; v < V; ++v)
       for (int k = 0; k < 3; ++k) s.pose_offsets(v, k) = d[3 * v + k];

@@ -27,6 +27,11 @@ struct BodyModel {
   std::vector<int> parents;     // J; parents[0] = -1
   std::vector<std::string> joint_names;
   std::vector<int> part_labels;  // V, values in [0, kNumParts)
+  // True when every entry of posedirs is zero (the default model): body_forward then skips the
+  // 3V x 9(J-1) product. Set by load_body_model / make_default_body_model; reset it (or call
+  // update_posedirs_flag) if you edit posedirs yourself.
+  bool posedirs_zero = false;
+  void update_posedirs_flag() { posedirs_zero = posedirs.size() == 0 || posedirs.isZero(0); }
 
   int num_vertices() const { return int(v_template.rows()); }
   int num_joints() const { return int(parents.size()); }

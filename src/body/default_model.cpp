@@ -647,6 +647,7 @@ BodyModel make_default_body_model() {
   m.num_betas = int(m.shapedirs.cols());
   m.num_expression = 0;
   m.posedirs = Eigen::MatrixXd::Zero(3 * mesh.V.rows(), 9 * 23);
+  m.posedirs_zero = true;
   m.part_labels = part_labels_from_weights(m.weights, m.kind);
   // Midline vertices whose left and right weights tie get the central part instead.
   for (Eigen::Index v = 0; v < mesh.V.rows(); ++v) {

@@ -53,6 +53,7 @@ struct PhaseTimer {
 };
 
 constexpr int kTS = kTileSize;
+constexpr int kNG = 9;  // per-Gaussian screen-space grads: mx, my, a, b, c, opacity, r, g, b
 constexpr int kTilePixels = kTS * kTS;
 constexpr int kBatch = 64;
 // Pixels of a tile row processed together (one SIMD vector on the baseline SSE2 build).
@@ -89,14 +90,37 @@ inline double fexp(double x) {
 
 // Explicit SIMD over the kCW pixels of a chunk (GCC/Clang vector extensions: SSE2 on the
 // baseline build, wider with -march). The double instantiation (tests) uses std::exp per lane.
-template <class T>
-struct Simd;
+// (vector_size must not depend on a template parameter: one explicit specialisation a width.)
+template <class T, int CW>
+struct VecTypes;
 template <>
-struct Simd<float> {
-  typedef float V __attribute__((vector_size(sizeof(float) * kCW)));
-  typedef int32_t I __attribute__((vector_size(sizeof(int32_t) * kCW)));
+struct VecTypes<float, 4> {
+  typedef float V __attribute__((vector_size(16)));
+  typedef int32_t I __attribute__((vector_size(16)));
+};
+template <>
+struct VecTypes<float, 8> {
+  typedef float V __attribute__((vector_size(32)));
+  typedef int32_t I __attribute__((vector_size(32)));
+};
+template <>
+struct VecTypes<double, 4> {
+  typedef double V __attribute__((vector_size(32)));
+  typedef int64_t I __attribute__((vector_size(32)));
+};
+template <>
+struct VecTypes<double, 8> {
+  typedef double V __attribute__((vector_size(64)));
+  typedef int64_t I __attribute__((vector_size(64)));
+};
+template <class T, int CW>
+struct Simd;
+template <int CW>
+struct Simd<float, CW> {
+  typedef typename VecTypes<float, CW>::V V;
+  typedef typename VecTypes<float, CW>::I I;
   typedef int32_t S;
-  static V exp(V x) {
+  [[gnu::always_inline]] static V exp(V x) {
     const V lo = V{} - 87.0f;
     x = x < lo ? lo : x;
     const V t = x * 1.4426950408889634f;
@@ -113,51 +137,58 @@ struct Simd<float> {
     return p * (V)bits;
   }
   // Number of set lanes of a comparison mask.
-  static int count(const I& m) {
-#if defined(__AVX__)
-    if constexpr (kCW == 8)
-      return __builtin_popcount(_mm256_movemask_ps(_mm256_castsi256_ps((__m256i)m)));
-#endif
+  [[gnu::always_inline]] static int count(const I& m) {
 #if defined(__SSE2__)
-    if constexpr (kCW == 4)
-      return __builtin_popcount(_mm_movemask_ps(_mm_castsi128_ps((__m128i)m)));
+    if constexpr (CW == 4) return __builtin_popcount(_mm_movemask_ps(_mm_castsi128_ps((__m128i)m)));
 #endif
     int n = 0;
-    for (int l = 0; l < kCW; ++l) n -= int(m[l]);
+    for (int l = 0; l < CW; ++l) n -= int(m[l]);
     return n;
   }
 };
-template <>
-struct Simd<double> {
-  typedef double V __attribute__((vector_size(sizeof(double) * kCW)));
-  typedef int64_t I __attribute__((vector_size(sizeof(int64_t) * kCW)));
+template <int CW>
+struct Simd<double, CW> {
+  typedef typename VecTypes<double, CW>::V V;
+  typedef typename VecTypes<double, CW>::I I;
   typedef int64_t S;
   static V exp(V x) {
-    for (int l = 0; l < kCW; ++l) x[l] = std::exp(x[l]);
+    for (int l = 0; l < CW; ++l) x[l] = std::exp(x[l]);
     return x;
   }
   static int count(const I& m) {
     int n = 0;
-    for (int l = 0; l < kCW; ++l) n -= int(m[l]);
+    for (int l = 0; l < CW; ++l) n -= int(m[l]);
     return n;
   }
 };
 
 template <class V, class T>
-inline V vload(const T* p) {
+[[gnu::always_inline]] inline V vload(const T* p) {
   V v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
 template <class V, class T>
-inline void vstore(T* p, const V& v) {
+[[gnu::always_inline]] inline void vstore(T* p, const V& v) {
   std::memcpy(p, &v, sizeof v);
 }
-template <class V>
-inline V lanes() {
+template <class V, int CW>
+[[gnu::always_inline]] inline V lanes() {
   V v{};
-  for (int l = 0; l < kCW; ++l) v[l] = l;
+  for (int l = 0; l < CW; ++l) v[l] = l;
   return v;
+}
+
+// AVX2 kernels (8 pixels a chunk) are compiled alongside the baseline ones and chosen at run
+// time; the results are identical (same per-pixel arithmetic, no FMA contraction).
+inline bool use_avx2() {
+#if defined(__x86_64__) || defined(__i386__)
+  static const bool ok =
+      __builtin_cpu_supports("avx2") && std::getenv("KS_RASTER_NO_AVX2") == nullptr;
+  return ok;
+#else
+  return false;
+#endif
 }
 
 template <class T>
@@ -246,6 +277,232 @@ void shape_image(Img& img, int w, int h, int c) {
   img.height = h;
   img.channels = c;
   img.data.resize(size_t(w) * h * c);
+}
+
+// One tile of the forward pass; CW pixels per SIMD chunk.
+template <int CW, class T, class Res>
+[[gnu::always_inline]] inline void composite_tile(Res& out, int tile, int tiles_x, int W, int H,
+                                                  const T* bg) {
+  constexpr int kCPR_ = kTS / CW, kChunks_ = kTS * kCPR_;
+  const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
+  alignas(64) T Tt[kTilePixels], C0[kTilePixels], C1[kTilePixels], C2[kTilePixels], Dp[kTilePixels];
+  using SV = Simd<T, CW>;
+  using V = typename SV::V;
+  using VI = typename SV::I;
+  using SI = typename SV::S;
+  // A pixel is finished (transmittance would fall below 1e-4, or outside the image) when its
+  // Tt is negative; |Tt| is its transmittance.
+  alignas(64) SI last[kTilePixels];
+  int chunk_live[kChunks_];  // live pixels per chunk of CW pixels of a row
+  int tile_live = 0;
+  for (int q = 0; q < kChunks_; ++q) chunk_live[q] = 0;
+  for (int r = 0; r < kTS; ++r)
+    for (int c = 0; c < kTS; ++c) {
+      const int p = r * kTS + c;
+      const bool in = ox + c < W && oy + r < H;
+      Tt[p] = in ? T(1) : T(-1), C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
+      chunk_live[p / CW] += in;
+      tile_live += in;
+    }
+  const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
+  alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
+      br[kBatch], bgc[kBatch], bbl[kBatch], bz[kBatch];
+  int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
+  for (uint32_t b0 = start; b0 < end && tile_live > 0; b0 += kBatch) {
+    const int n = int(std::min<uint32_t>(kBatch, end - b0));
+    for (int k = 0; k < n; ++k) {
+      const uint32_t id = out.point_list[b0 + k];
+      bmx[k] = out.means2d[2 * id] - T(ox);
+      bmy[k] = out.means2d[2 * id + 1] - T(oy);
+      ba[k] = out.conics[3 * id], bb[k] = out.conics[3 * id + 1], bc[k] = out.conics[3 * id + 2];
+      bo[k] = out.opacities[id];
+      br[k] = out.colors[3 * id], bgc[k] = out.colors[3 * id + 1], bbl[k] = out.colors[3 * id + 2];
+      bz[k] = out.depths[id];
+      const int* rc = &out.rects[4 * size_t(id)];
+      bx0[k] = std::max(rc[0] - ox, 0) / CW;
+      bx1[k] = std::min(rc[1] - ox, kTS - 1) / CW;
+      by0[k] = std::max(rc[2] - oy, 0);
+      by1[k] = std::min(rc[3] - oy, kTS - 1);
+    }
+    for (int k = 0; k < n && tile_live > 0; ++k) {
+      const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
+      const T cr = br[k], cg = bgc[k], cb = bbl[k], zz = bz[k];
+      const int32_t idx1 = int32_t(b0 - start) + k + 1;
+      for (int r = by0[k]; r <= by1[k]; ++r) {
+        const T dy = bmy[k] - (T(r) + T(0.5));
+        const int q0 = bx0[k], q1 = bx1[k];
+        const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
+        for (int q = q0; q <= q1; ++q) {
+          const int cq = r * kCPR_ + q;
+          if (chunk_live[cq] == 0) continue;
+          const int p0 = cq * CW;
+          const V dx = (mx - T(q * CW) - T(0.5)) - lanes<V, CW>();
+          const V pw = -(T(0.5) * a * dx * dx + cdy) - bdy * dx;
+          const V og = o * SV::exp(pw);
+          const V al = og < T(0.99) ? og : V{} + T(0.99);
+          const V Tp = vload<V>(Tt + p0);
+          const VI ok = (pw <= T(0)) & (al >= T(1.0f / 255.0f)) & (Tp > T(0));
+          const V Tn = Tp * (T(1) - al);
+          const VI term = ok & (Tn < T(1e-4));
+          const VI con = ok & ~term;
+          const V w = con ? al * Tp : V{};
+          vstore(C0 + p0, vload<V>(C0 + p0) + w * cr);
+          vstore(C1 + p0, vload<V>(C1 + p0) + w * cg);
+          vstore(C2 + p0, vload<V>(C2 + p0) + w * cb);
+          vstore(Dp + p0, vload<V>(Dp + p0) + w * zz);
+          vstore(Tt + p0, con ? Tn : (term ? -Tp : Tp));
+          vstore(last + p0, (con & SI(idx1)) | (~con & vload<VI>(last + p0)));
+          const int nterm = SV::count(term);
+          if (nterm) {
+            chunk_live[cq] -= nterm;
+            tile_live -= nterm;
+          }
+        }
+      }
+    }
+  }
+  for (int r = 0; r < kTS && oy + r < H; ++r)
+    for (int c = 0; c < kTS && ox + c < W; ++c) {
+      const int p = r * kTS + c;
+      const size_t pix = size_t(oy + r) * W + ox + c;
+      const T Tf = std::abs(Tt[p]);
+      out.color.data[3 * pix] = C0[p] + Tf * bg[0];
+      out.color.data[3 * pix + 1] = C1[p] + Tf * bg[1];
+      out.color.data[3 * pix + 2] = C2[p] + Tf * bg[2];
+      out.alpha.data[pix] = 1 - Tf;
+      out.depth.data[pix] = Dp[p];
+      out.final_T[pix] = Tf;
+      out.n_contrib[pix] = uint32_t(last[p]);
+    }
+}
+
+template <class Res>
+__attribute__((target("avx2"), flatten)) void composite_tile_avx2(Res& out, int tile, int tiles_x,
+                                                                  int W, int H, const float* bg) {
+  composite_tile<8, float>(out, tile, tiles_x, W, H, bg);
+}
+
+// One tile of the backward pass (reverse order), accumulating into `acc` (9 per Gaussian).
+template <int CW, class T, class Res, class Img>
+[[gnu::always_inline]] inline void backward_tile(const Res& fwd, const Img& dLdc, const Img& dLda,
+                                                 bool has_da, const T* bg, T* acc, int tile,
+                                                 int tiles_x, int W, int H) {
+  constexpr int kCPR_ = kTS / CW, kChunks_ = kTS * kCPR_;
+  const uint32_t start = fwd.tile_ranges[2 * tile], end = fwd.tile_ranges[2 * tile + 1];
+  if (start == end) return;
+  const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
+  alignas(64) T Tt[kTilePixels], Tf[kTilePixels], R0[kTilePixels], R1[kTilePixels], R2[kTilePixels],
+      D0[kTilePixels], D1[kTilePixels], D2[kTilePixels], DA[kTilePixels];
+  using SV = Simd<T, CW>;
+  using V = typename SV::V;
+  using VI = typename SV::I;
+  using SI = typename SV::S;
+  alignas(64) SI last[kTilePixels];
+  int chunk_max[kChunks_];  // max over the chunk's pixels of last contributor + 1
+  int jmax = 0;
+  for (int q = 0; q < kChunks_; ++q) chunk_max[q] = 0;
+  for (int r = 0; r < kTS; ++r)
+    for (int c = 0; c < kTS; ++c) {
+      const int p = r * kTS + c;
+      if (ox + c < W && oy + r < H) {
+        const size_t pix = size_t(oy + r) * W + ox + c;
+        Tt[p] = Tf[p] = fwd.final_T[pix];
+        last[p] = SI(fwd.n_contrib[pix]);
+        D0[p] = T(dLdc.data[3 * pix]), D1[p] = T(dLdc.data[3 * pix + 1]),
+        D2[p] = T(dLdc.data[3 * pix + 2]);
+        DA[p] = has_da ? T(dLda.data[pix]) : T(0);
+      } else {
+        Tt[p] = Tf[p] = 1, last[p] = 0, D0[p] = D1[p] = D2[p] = DA[p] = 0;
+      }
+      R0[p] = bg[0], R1[p] = bg[1], R2[p] = bg[2];
+      chunk_max[p / CW] = std::max(chunk_max[p / CW], int(last[p]));
+      jmax = std::max(jmax, int(last[p]));
+    }
+  alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
+      br[kBatch], bgc[kBatch], bbl[kBatch];
+  int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
+  uint32_t bid[kBatch];
+  for (int hi = jmax; hi > 0; hi -= kBatch) {
+    const int lo = std::max(0, hi - kBatch);
+    for (int j = lo; j < hi; ++j) {
+      const int k = j - lo;
+      const uint32_t id = fwd.point_list[start + j];
+      bid[k] = id;
+      bmx[k] = fwd.means2d[2 * id] - T(ox);
+      bmy[k] = fwd.means2d[2 * id + 1] - T(oy);
+      ba[k] = fwd.conics[3 * id], bb[k] = fwd.conics[3 * id + 1];
+      bc[k] = fwd.conics[3 * id + 2];
+      bo[k] = fwd.opacities[id];
+      br[k] = fwd.colors[3 * id], bgc[k] = fwd.colors[3 * id + 1];
+      bbl[k] = fwd.colors[3 * id + 2];
+      const int* rc = &fwd.rects[4 * size_t(id)];
+      bx0[k] = std::max(rc[0] - ox, 0) / CW;
+      bx1[k] = std::min(rc[1] - ox, kTS - 1) / CW;
+      by0[k] = std::max(rc[2] - oy, 0);
+      by1[k] = std::min(rc[3] - oy, kTS - 1);
+    }
+    for (int j = hi - 1; j >= lo; --j) {
+      const int k = j - lo;
+      const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
+      const T cr = br[k], cg = bgc[k], cb = bbl[k];
+      V s_mx{}, s_my{}, s_a{}, s_b{}, s_c{}, s_o{}, s_r{}, s_g{}, s_bl{};
+      for (int r = by0[k]; r <= by1[k]; ++r) {
+        // Same expressions as the forward pass, so the skip decisions agree bit for bit.
+        const T dy = bmy[k] - (T(r) + T(0.5));
+        const int q0 = bx0[k], q1 = bx1[k];
+        const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
+        for (int q = q0; q <= q1; ++q) {
+          const int cq = r * kCPR_ + q;
+          if (chunk_max[cq] <= j) continue;
+          const int p0 = cq * CW;
+          const V dx = (mx - T(q * CW) - T(0.5)) - lanes<V, CW>();
+          const V pw = -(T(0.5) * a * dx * dx + cdy) - bdy * dx;
+          const V Gv = SV::exp(pw);
+          const V og = o * Gv;
+          const V al = og < T(0.99) ? og : V{} + T(0.99);
+          const VI ok = (SI(j) < vload<VI>(last + p0)) & (pw <= T(0)) & (al >= T(1.0f / 255.0f));
+          const V om = T(1) - al;
+          const V Tc = vload<V>(Tt + p0);
+          const V Tj = Tc / om;
+          V r0 = vload<V>(R0 + p0), r1 = vload<V>(R1 + p0), r2 = vload<V>(R2 + p0);
+          const V d0 = vload<V>(D0 + p0), d1 = vload<V>(D1 + p0), d2 = vload<V>(D2 + p0);
+          const V dLdal = Tj * ((cr - r0) * d0 + (cg - r1) * d1 + (cb - r2) * d2) +
+                          vload<V>(DA + p0) * vload<V>(Tf + p0) / om;
+          const V w = ok ? al * Tj : V{};
+          s_r += w * d0;
+          s_g += w * d1;
+          s_bl += w * d2;
+          vstore(R0 + p0, ok ? cr * al + om * r0 : r0);
+          vstore(R1 + p0, ok ? cg * al + om * r1 : r1);
+          vstore(R2 + p0, ok ? cb * al + om * r2 : r2);
+          vstore(Tt + p0, ok ? Tj : Tc);
+          const V dLdog = (ok & (og <= T(0.99))) ? dLdal : V{};
+          s_o += Gv * dLdog;
+          const V dLdpw = og * dLdog;
+          s_mx -= dLdpw * (a * dx + b * dy);
+          s_my -= dLdpw * (c * dy + b * dx);
+          s_a -= T(0.5) * dx * dx * dLdpw;
+          s_c -= T(0.5) * dy * dy * dLdpw;
+          s_b -= dx * dy * dLdpw;
+        }
+      }
+      T* ga = acc + size_t(kNG) * bid[k];
+      for (int l = 0; l < CW; ++l) {
+        ga[0] += s_mx[l], ga[1] += s_my[l], ga[2] += s_a[l], ga[3] += s_b[l];
+        ga[4] += s_c[l], ga[5] += s_o[l], ga[6] += s_r[l], ga[7] += s_g[l];
+        ga[8] += s_bl[l];
+      }
+    }
+  }
+}
+
+template <class Res, class Img>
+__attribute__((target("avx2"), flatten)) void backward_tile_avx2(const Res& fwd, const Img& dLdc,
+                                                                 const Img& dLda, bool has_da,
+                                                                 const float* bg, float* acc,
+                                                                 int tile, int tiles_x, int W,
+                                                                 int H) {
+  backward_tile<8, float>(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -415,104 +672,16 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
   const T bg[3] = {T(s.background[0]), T(s.background[1]), T(s.background[2])};
 #pragma omp parallel for schedule(dynamic, 2)
   for (int tile = 0; tile < ntiles; ++tile) {
-    const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
-    alignas(64) T Tt[kTilePixels], C0[kTilePixels], C1[kTilePixels], C2[kTilePixels],
-        Dp[kTilePixels];
-    using SV = Simd<T>;
-    using V = typename SV::V;
-    using VI = typename SV::I;
-    using SI = typename SV::S;
-    // A pixel is finished (transmittance would fall below 1e-4, or outside the image) when its
-    // Tt is negative; |Tt| is its transmittance.
-    alignas(64) SI last[kTilePixels];
-    int chunk_live[kChunks];  // live pixels per chunk of kCW pixels of a row
-    int tile_live = 0;
-    for (int q = 0; q < kChunks; ++q) chunk_live[q] = 0;
-    for (int r = 0; r < kTS; ++r)
-      for (int c = 0; c < kTS; ++c) {
-        const int p = r * kTS + c;
-        const bool in = ox + c < W && oy + r < H;
-        Tt[p] = in ? T(1) : T(-1), C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
-        chunk_live[p / kCW] += in;
-        tile_live += in;
-      }
-    const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
-    alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
-        br[kBatch], bgc[kBatch], bbl[kBatch], bz[kBatch];
-    int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
-    for (uint32_t b0 = start; b0 < end && tile_live > 0; b0 += kBatch) {
-      const int n = int(std::min<uint32_t>(kBatch, end - b0));
-      for (int k = 0; k < n; ++k) {
-        const uint32_t id = out.point_list[b0 + k];
-        bmx[k] = out.means2d[2 * id] - T(ox);
-        bmy[k] = out.means2d[2 * id + 1] - T(oy);
-        ba[k] = out.conics[3 * id], bb[k] = out.conics[3 * id + 1], bc[k] = out.conics[3 * id + 2];
-        bo[k] = out.opacities[id];
-        br[k] = out.colors[3 * id], bgc[k] = out.colors[3 * id + 1],
-        bbl[k] = out.colors[3 * id + 2];
-        bz[k] = out.depths[id];
-        const int* rc = &out.rects[4 * size_t(id)];
-        bx0[k] = std::max(rc[0] - ox, 0) / kCW;
-        bx1[k] = std::min(rc[1] - ox, kTS - 1) / kCW;
-        by0[k] = std::max(rc[2] - oy, 0);
-        by1[k] = std::min(rc[3] - oy, kTS - 1);
-      }
-      for (int k = 0; k < n && tile_live > 0; ++k) {
-        const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
-        const T cr = br[k], cg = bgc[k], cb = bbl[k], zz = bz[k];
-        const int32_t idx1 = int32_t(b0 - start) + k + 1;
-        for (int r = by0[k]; r <= by1[k]; ++r) {
-          const T dy = bmy[k] - (T(r) + T(0.5));
-          const int q0 = bx0[k], q1 = bx1[k];
-          const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
-          for (int q = q0; q <= q1; ++q) {
-            const int cq = r * kCPR + q;
-            if (chunk_live[cq] == 0) continue;
-            const int p0 = cq * kCW;
-            const V dx = (mx - T(q * kCW) - T(0.5)) - lanes<V>();
-            const V pw = -(T(0.5) * a * dx * dx + cdy) - bdy * dx;
-            const V og = o * SV::exp(pw);
-            const V al = og < T(0.99) ? og : V{} + T(0.99);
-            const V Tp = vload<V>(Tt + p0);
-            const VI ok = (pw <= T(0)) & (al >= T(1.0f / 255.0f)) & (Tp > T(0));
-            const V Tn = Tp * (T(1) - al);
-            const VI term = ok & (Tn < T(1e-4));
-            const VI con = ok & ~term;
-            const V w = con ? al * Tp : V{};
-            vstore(C0 + p0, vload<V>(C0 + p0) + w * cr);
-            vstore(C1 + p0, vload<V>(C1 + p0) + w * cg);
-            vstore(C2 + p0, vload<V>(C2 + p0) + w * cb);
-            vstore(Dp + p0, vload<V>(Dp + p0) + w * zz);
-            vstore(Tt + p0, con ? Tn : (term ? -Tp : Tp));
-            vstore(last + p0, (con & SI(idx1)) | (~con & vload<VI>(last + p0)));
-            const int nterm = SV::count(term);
-            if (nterm) {
-              chunk_live[cq] -= nterm;
-              tile_live -= nterm;
-            }
-          }
-        }
+    if constexpr (std::is_same_v<T, float>) {
+      if (use_avx2()) {
+        composite_tile_avx2(out, tile, tiles_x, W, H, bg);
+        continue;
       }
     }
-    for (int r = 0; r < kTS && oy + r < H; ++r)
-      for (int c = 0; c < kTS && ox + c < W; ++c) {
-        const int p = r * kTS + c;
-        const size_t pix = size_t(oy + r) * W + ox + c;
-        const T Tf = std::abs(Tt[p]);
-        out.color.data[3 * pix] = C0[p] + Tf * bg[0];
-        out.color.data[3 * pix + 1] = C1[p] + Tf * bg[1];
-        out.color.data[3 * pix + 2] = C2[p] + Tf * bg[2];
-        out.alpha.data[pix] = 1 - Tf;
-        out.depth.data[pix] = Dp[p];
-        out.final_T[pix] = Tf;
-        out.n_contrib[pix] = uint32_t(last[p]);
-      }
+    composite_tile<kCW, T>(out, tile, tiles_x, W, H, bg);
   }
   timer.mark("composite");
 }
-
-// ---------------------------------------------------------------------------------------------
-constexpr int kNG = 9;  // per-Gaussian screen-space grads: mx, my, a, b, c, opacity, r, g, b
 
 template <class G, class Res, class Img, class Grads>
 void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, const Res& fwd,
@@ -553,113 +722,13 @@ void backward_impl(const G& g, const Camera& camera, const RasterSettings& s, co
                 gr.scratch.data() + size_t(th + 1) * stride, T(0));
 #pragma omp for schedule(dynamic, 2)
     for (int tile = 0; tile < ntiles; ++tile) {
-      const uint32_t start = fwd.tile_ranges[2 * tile], end = fwd.tile_ranges[2 * tile + 1];
-      if (start == end) continue;
-      const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
-      alignas(64) T Tt[kTilePixels], Tf[kTilePixels], R0[kTilePixels], R1[kTilePixels],
-          R2[kTilePixels], D0[kTilePixels], D1[kTilePixels], D2[kTilePixels], DA[kTilePixels];
-      using SV = Simd<T>;
-      using V = typename SV::V;
-      using VI = typename SV::I;
-      using SI = typename SV::S;
-      alignas(64) SI last[kTilePixels];
-      int chunk_max[kChunks];  // max over the chunk's pixels of last contributor + 1
-      int jmax = 0;
-      for (int q = 0; q < kChunks; ++q) chunk_max[q] = 0;
-      for (int r = 0; r < kTS; ++r)
-        for (int c = 0; c < kTS; ++c) {
-          const int p = r * kTS + c;
-          if (ox + c < W && oy + r < H) {
-            const size_t pix = size_t(oy + r) * W + ox + c;
-            Tt[p] = Tf[p] = fwd.final_T[pix];
-            last[p] = SI(fwd.n_contrib[pix]);
-            D0[p] = T(dLdc.data[3 * pix]), D1[p] = T(dLdc.data[3 * pix + 1]),
-            D2[p] = T(dLdc.data[3 * pix + 2]);
-            DA[p] = has_da ? T(dLda.data[pix]) : T(0);
-          } else {
-            Tt[p] = Tf[p] = 1, last[p] = 0, D0[p] = D1[p] = D2[p] = DA[p] = 0;
-          }
-          R0[p] = bg[0], R1[p] = bg[1], R2[p] = bg[2];
-          chunk_max[p / kCW] = std::max(chunk_max[p / kCW], int(last[p]));
-          jmax = std::max(jmax, int(last[p]));
-        }
-      alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
-          br[kBatch], bgc[kBatch], bbl[kBatch];
-      int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
-      uint32_t bid[kBatch];
-      for (int hi = jmax; hi > 0; hi -= kBatch) {
-        const int lo = std::max(0, hi - kBatch);
-        for (int j = lo; j < hi; ++j) {
-          const int k = j - lo;
-          const uint32_t id = fwd.point_list[start + j];
-          bid[k] = id;
-          bmx[k] = fwd.means2d[2 * id] - T(ox);
-          bmy[k] = fwd.means2d[2 * id + 1] - T(oy);
-          ba[k] = fwd.conics[3 * id], bb[k] = fwd.conics[3 * id + 1];
-          bc[k] = fwd.conics[3 * id + 2];
-          bo[k] = fwd.opacities[id];
-          br[k] = fwd.colors[3 * id], bgc[k] = fwd.colors[3 * id + 1];
-          bbl[k] = fwd.colors[3 * id + 2];
-          const int* rc = &fwd.rects[4 * size_t(id)];
-          bx0[k] = std::max(rc[0] - ox, 0) / kCW;
-          bx1[k] = std::min(rc[1] - ox, kTS - 1) / kCW;
-          by0[k] = std::max(rc[2] - oy, 0);
-          by1[k] = std::min(rc[3] - oy, kTS - 1);
-        }
-        for (int j = hi - 1; j >= lo; --j) {
-          const int k = j - lo;
-          const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
-          const T cr = br[k], cg = bgc[k], cb = bbl[k];
-          V s_mx{}, s_my{}, s_a{}, s_b{}, s_c{}, s_o{}, s_r{}, s_g{}, s_bl{};
-          for (int r = by0[k]; r <= by1[k]; ++r) {
-            // Same expressions as the forward pass, so the skip decisions agree bit for bit.
-            const T dy = bmy[k] - (T(r) + T(0.5));
-            const int q0 = bx0[k], q1 = bx1[k];
-            const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
-            for (int q = q0; q <= q1; ++q) {
-              const int cq = r * kCPR + q;
-              if (chunk_max[cq] <= j) continue;
-              const int p0 = cq * kCW;
-              const V dx = (mx - T(q * kCW) - T(0.5)) - lanes<V>();
-              const V pw = -(T(0.5) * a * dx * dx + cdy) - bdy * dx;
-              const V Gv = SV::exp(pw);
-              const V og = o * Gv;
-              const V al = og < T(0.99) ? og : V{} + T(0.99);
-              const VI ok =
-                  (SI(j) < vload<VI>(last + p0)) & (pw <= T(0)) & (al >= T(1.0f / 255.0f));
-              const V om = T(1) - al;
-              const V Tc = vload<V>(Tt + p0);
-              const V Tj = Tc / om;
-              V r0 = vload<V>(R0 + p0), r1 = vload<V>(R1 + p0), r2 = vload<V>(R2 + p0);
-              const V d0 = vload<V>(D0 + p0), d1 = vload<V>(D1 + p0), d2 = vload<V>(D2 + p0);
-              const V dLdal = Tj * ((cr - r0) * d0 + (cg - r1) * d1 + (cb - r2) * d2) +
-                              vload<V>(DA + p0) * vload<V>(Tf + p0) / om;
-              const V w = ok ? al * Tj : V{};
-              s_r += w * d0;
-              s_g += w * d1;
-              s_bl += w * d2;
-              vstore(R0 + p0, ok ? cr * al + om * r0 : r0);
-              vstore(R1 + p0, ok ? cg * al + om * r1 : r1);
-              vstore(R2 + p0, ok ? cb * al + om * r2 : r2);
-              vstore(Tt + p0, ok ? Tj : Tc);
-              const V dLdog = (ok & (og <= T(0.99))) ? dLdal : V{};
-              s_o += Gv * dLdog;
-              const V dLdpw = og * dLdog;
-              s_mx -= dLdpw * (a * dx + b * dy);
-              s_my -= dLdpw * (c * dy + b * dx);
-              s_a -= T(0.5) * dx * dx * dLdpw;
-              s_c -= T(0.5) * dy * dy * dLdpw;
-              s_b -= dx * dy * dLdpw;
-            }
-          }
-          T* ga = acc + size_t(kNG) * bid[k];
-          for (int l = 0; l < kCW; ++l) {
-            ga[0] += s_mx[l], ga[1] += s_my[l], ga[2] += s_a[l], ga[3] += s_b[l];
-            ga[4] += s_c[l], ga[5] += s_o[l], ga[6] += s_r[l], ga[7] += s_g[l];
-            ga[8] += s_bl[l];
-          }
+      if constexpr (std::is_same_v<T, float>) {
+        if (use_avx2()) {
+          backward_tile_avx2(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
+          continue;
         }
       }
+      backward_tile<kCW, T>(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
     }
   }
 

@@ -1,3 +1,5 @@
+// The AVX2 kernels use 8-lane float vectors (32 bytes); internal helpers only.
+#pragma GCC diagnostic ignored "-Wpsabi"
 #include "raster/rasterizer.hpp"
 
 #include "raster/raster_impl.hpp"

@@ -159,7 +159,7 @@ TEST(DefaultBody, MirrorSymmetry) {
     if (m.part_labels[size_t(u)] != mirror_part(m.part_labels[size_t(v)])) ++label_mismatch;
   }
   EXPECT_EQ(missing, 0);
-  EXPECT_LE(label_mismatch, m.num_vertices() / 500);  // ties on the midline only
+  EXPECT_EQ(label_mismatch, 0);
 }
 
 TEST(DefaultBody, ShapeDirectionsSpanRealVariation) {

@@ -208,5 +208,54 @@ TEST(MeshObj, WritesVerticesInOrder) {
   EXPECT_FALSE(std::filesystem::exists(p));
 }
 
+// A closed genus-0 mesh with SMPL's counts (6890 vertices, 13,776 faces): a UV sphere with
+// 84 rings of 82 vertices plus two poles.
+TriMesh uv_sphere(int rings, int segs) {
+  TriMesh m;
+  m.V.resize(rings * segs + 2, 3);
+  const double pi = 3.14159265358979323846;
+  for (int r = 0; r < rings; ++r)
+    for (int s = 0; s < segs; ++s) {
+      const double th = pi * (r + 1) / (rings + 1), ph = 2 * pi * s / segs;
+      m.V.row(r * segs + s) << std::sin(th) * std::cos(ph), std::cos(th),
+          std::sin(th) * std::sin(ph);
+    }
+  const int top = rings * segs, bot = top + 1;
+  m.V.row(top) << 0, 1, 0;
+  m.V.row(bot) << 0, -1, 0;
+  std::vector<Eigen::Vector3i> f;
+  for (int s = 0; s < segs; ++s) {
+    const int s1 = (s + 1) % segs;
+    f.emplace_back(top, s1, s);
+    f.emplace_back(bot, (rings - 1) * segs + s, (rings - 1) * segs + s1);
+    for (int r = 0; r + 1 < rings; ++r) {
+      const int a = r * segs + s, b = r * segs + s1, c = (r + 1) * segs + s,
+                d = (r + 1) * segs + s1;
+      f.emplace_back(a, b, d);
+      f.emplace_back(a, d, c);
+    }
+  }
+  m.F.resize(int(f.size()), 3);
+  for (size_t i = 0; i < f.size(); ++i) m.F.row(int(i)) = f[i].transpose();
+  return m;
+}
+
+TEST(MeshSubdivision, SmplCountsTwoLevels) {
+  const TriMesh m = uv_sphere(84, 82);
+  ASSERT_EQ(m.V.rows(), 6890);
+  ASSERT_EQ(m.F.rows(), 13776);
+  ASSERT_TRUE(is_closed_manifold(m.F, 6890));
+  const double vol0 = signed_volume(m);
+  EXPECT_GT(vol0, 0);
+  const Subdivision s = subdivide(m, 2, true);
+  EXPECT_EQ(s.mesh.V.rows(), 110210);
+  EXPECT_EQ(s.mesh.F.rows(), 16 * 13776);
+  EXPECT_EQ(s.S.rows(), 110210);
+  EXPECT_EQ(s.S.cols(), 6890);
+  EXPECT_EQ(subdivide(m, 1, true).mesh.V.rows(), 27554);
+  EXPECT_EQ(euler_characteristic(s.mesh.F, 110210), 2);
+  EXPECT_GT(signed_volume(s.mesh), 0);
+}
+
 }  // namespace
 }  // namespace ks
