@@ -358,9 +358,18 @@ void save_body_model(const std::string& path, const BodyModel& m) {
   {
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> r = m.shapedirs;
     a["shapedirs"] = NpyArray::from_doubles({V, 3, S}, r.data());
-    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> q = m.posedirs;
-    // All-zero correctives (the default model) are written as float32: exact and half the size.
-    a["posedirs"] = NpyArray::from_doubles({V, 3, P}, q.data(), m.posedirs.isZero(0));
+    if (m.posedirs.isZero(0)) {
+      // All-zero correctives (the default model): float32 zeros, exact and half the size.
+      NpyArray z;
+      z.kind = 'f';
+      z.itemsize = 4;
+      z.shape = {V, 3, P};
+      z.data.assign(size_t(V) * 3 * size_t(P) * 4, 0);
+      a["posedirs"] = std::move(z);
+    } else {
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> q = m.posedirs;
+      a["posedirs"] = NpyArray::from_doubles({V, 3, P}, q.data());
+    }
   }
   a["J_regressor"] = NpyArray::from_matrix(m.J_regressor);
   a["weights"] = NpyArray::from_matrix(m.weights);
