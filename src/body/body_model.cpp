@@ -91,14 +91,21 @@ void need_numeric(const std::string& path, const std::string& key, const NpyArra
 
 Eigen::MatrixXd to_matrix(const NpyArray& a, int64_t rows, int64_t cols, const std::string& path,
                           const std::string& key) {
-  Eigen::MatrixXd m(rows, cols);
-  for (int64_t r = 0; r < rows; ++r)
-    for (int64_t c = 0; c < cols; ++c) {
-      const double v = a.as_double(r * cols + c);
-      if (!std::isfinite(v))
-        throw Error(path + ": array '" + key + "' holds a non-finite value (NaN or inf)");
-      m(r, c) = v;
-    }
+  using RowD = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  using RowF = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  Eigen::MatrixXd m;
+  if (a.kind == 'f' && a.itemsize == 8) {
+    m = Eigen::Map<const RowD>(reinterpret_cast<const double*>(a.data.data()), rows, cols);
+  } else if (a.kind == 'f' && a.itemsize == 4) {
+    m = Eigen::Map<const RowF>(reinterpret_cast<const float*>(a.data.data()), rows, cols)
+            .cast<double>();
+  } else {
+    m.resize(rows, cols);
+    for (int64_t r = 0; r < rows; ++r)
+      for (int64_t c = 0; c < cols; ++c) m(r, c) = a.as_double(r * cols + c);
+  }
+  if (!m.allFinite())
+    throw Error(path + ": array '" + key + "' holds a non-finite value (NaN or inf)");
   return m;
 }
 
@@ -352,7 +359,8 @@ void save_body_model(const std::string& path, const BodyModel& m) {
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> r = m.shapedirs;
     a["shapedirs"] = NpyArray::from_doubles({V, 3, S}, r.data());
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> q = m.posedirs;
-    a["posedirs"] = NpyArray::from_doubles({V, 3, P}, q.data());
+    // All-zero correctives (the default model) are written as float32: exact and half the size.
+    a["posedirs"] = NpyArray::from_doubles({V, 3, P}, q.data(), m.posedirs.isZero(0));
   }
   a["J_regressor"] = NpyArray::from_matrix(m.J_regressor);
   a["weights"] = NpyArray::from_matrix(m.weights);
