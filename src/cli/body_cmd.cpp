@@ -65,6 +65,17 @@ ks::cli::CommandGroup group(10, [](CLI::App& app) {
     ks::BodyParams p;
     if (!opts->params.empty()) {
       const nlohmann::json j = ks::read_json(opts->params);
+      static const char* known[] = {
+          "betas",     "expression", "global_orient",  "body_pose",       "jaw_pose",
+          "leye_pose", "reye_pose",  "left_hand_pose", "right_hand_pose", "transl"};
+      if (j.is_object())
+        for (const auto& [key, value] : j.items()) {
+          bool ok = false;
+          for (const char* k : known) ok = ok || key == k;
+          if (!ok)
+            std::fprintf(stderr, "warning: %s: ignoring unknown key '%s'\n", opts->params.c_str(),
+                         key.c_str());
+        }
       try {
         p = ks::BodyParams::from_json(j, m);
       } catch (const ks::Error& e) {

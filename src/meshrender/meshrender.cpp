@@ -33,21 +33,22 @@ struct ClipVert {
   Eigen::Vector3d b;  // barycentrics in the original face
 };
 
-// Sets up one screen triangle from three camera-space corners. Returns false if it is
-// degenerate, culled, or covers no sample.
-bool setup_triangle(const ClipVert* cv, int face, const Camera& cam, double S, int samples_w,
-                    int samples_h, bool cull, bool clipped, RasterTri& t) {
-  double sx[3], sy[3];
-  for (int k = 0; k < 3; ++k) {
-    const double z = cv[k].p.z();
-    sx[k] = S * (cam.fx * cv[k].p.x() / z + cam.cx);
-    sy[k] = S * (cam.fy * cv[k].p.y() / z + cam.cy);
-    t.iz[k] = float(1.0 / z);
-  }
+// Sets up one screen triangle from its corners' sample-space coordinates and 1 / z. Returns
+// false if it is degenerate, culled, or covers no sample.
+bool setup_triangle(const double* sx, const double* sy, const float* iz, int face, int samples_w,
+                    int samples_h, bool cull, RasterTri& t) {
   const double area2 = (sx[1] - sx[0]) * (sy[2] - sy[0]) - (sy[1] - sy[0]) * (sx[2] - sx[0]);
   if (!(std::abs(area2) > 1e-12)) return false;
   // Front-facing (normal towards the camera) <=> negative signed area with y pointing down.
   if (cull && area2 > 0) return false;
+  const double minx = std::min({sx[0], sx[1], sx[2]}), maxx = std::max({sx[0], sx[1], sx[2]});
+  const double miny = std::min({sy[0], sy[1], sy[2]}), maxy = std::max({sy[0], sy[1], sy[2]});
+  const double lim = 1e9;
+  t.x0 = int(std::max(0.0, std::ceil(std::max(minx, -lim) - 0.5)));
+  t.x1 = int(std::min(double(samples_w - 1), std::floor(std::min(maxx, lim) - 0.5)));
+  t.y0 = int(std::max(0.0, std::ceil(std::max(miny, -lim) - 0.5)));
+  t.y1 = int(std::min(double(samples_h - 1), std::floor(std::min(maxy, lim) - 0.5)));
+  if (t.x0 > t.x1 || t.y0 > t.y1) return false;
   const double orient = area2 > 0 ? 1.0 : -1.0;
   for (int k = 0; k < 3; ++k) {
     const int a = (k + 1) % 3, b = (k + 2) % 3;
@@ -58,26 +59,35 @@ bool setup_triangle(const ClipVert* cv, int face, const Camera& cam, double S, i
     const double dx = sx[hi] - sx[lo], dy = sy[hi] - sy[lo];
     double A = -dy, B = dx, C = dy * sx[lo] - dx * sy[lo];
     // E_ab(p) = (b - a) x (p - a); E_ab(corner k) = area2.
-    const double s = (a_lo ? 1.0 : -1.0) * orient;
-    A *= s;
-    B *= s;
-    C *= s;
+    const double sg = (a_lo ? 1.0 : -1.0) * orient;
+    A *= sg;
+    B *= sg;
+    C *= sg;
     t.A[k] = A;
     t.B[k] = B;
     t.C[k] = C;
     t.tie[k] = A > 0 || (A == 0 && B > 0);
+    t.iz[k] = iz[k];
   }
   t.inv_area2 = 1.0 / std::abs(area2);
-  const double minx = std::min({sx[0], sx[1], sx[2]}), maxx = std::max({sx[0], sx[1], sx[2]});
-  const double miny = std::min({sy[0], sy[1], sy[2]}), maxy = std::max({sy[0], sy[1], sy[2]});
-  const double lim = 1e9;
-  t.x0 = int(std::max(0.0, std::ceil(std::max(minx, -lim) - 0.5)));
-  t.x1 = int(std::min(double(samples_w - 1), std::floor(std::min(maxx, lim) - 0.5)));
-  t.y0 = int(std::max(0.0, std::ceil(std::max(miny, -lim) - 0.5)));
-  t.y1 = int(std::min(double(samples_h - 1), std::floor(std::min(maxy, lim) - 0.5)));
-  if (t.x0 > t.x1 || t.y0 > t.y1) return false;
   t.face = face;
-  t.clipped = clipped;
+  t.clipped = false;
+  return true;
+}
+
+// The same for a triangle given by camera-space corners (a piece of a clipped face).
+bool setup_clipped(const ClipVert* cv, int face, const Camera& cam, double S, int samples_w,
+                   int samples_h, bool cull, RasterTri& t) {
+  double sx[3], sy[3];
+  float iz[3];
+  for (int k = 0; k < 3; ++k) {
+    const double z = cv[k].p.z();
+    sx[k] = S * (cam.fx * cv[k].p.x() / z + cam.cx);
+    sy[k] = S * (cam.fy * cv[k].p.y() / z + cam.cy);
+    iz[k] = float(1.0 / z);
+  }
+  if (!setup_triangle(sx, sy, iz, face, samples_w, samples_h, cull, t)) return false;
+  t.clipped = true;
   for (int k = 0; k < 3; ++k)
     for (int m = 0; m < 3; ++m) t.bary[k][m] = float(cv[k].b[m]);
   return true;
@@ -205,52 +215,97 @@ MeshRenderOutput render_mesh(const Camera& cam, const MeshRenderInput& in,
   }
   const Eigen::MatrixXi& UF = (use_texture && in.uv_faces) ? *in.uv_faces : F;
 
-  // Triangle setup (serial: cheap next to rasterisation; keeps the order deterministic).
-  std::vector<RasterTri> tris;
-  tris.reserve(size_t(M));
+  // Per-vertex sample-space projection (vertices in front of the near plane).
+  std::vector<double> vsx(static_cast<size_t>(N)), vsy(static_cast<size_t>(N));
+  std::vector<float> viz(static_cast<size_t>(N));
+#pragma omp parallel for schedule(static)
+  for (long i = 0; i < N; ++i) {
+    const double z = pc[i].z();
+    if (z >= opt.near) {
+      vsx[i] = S * (cam.fx * pc[i].x() / z + cam.cx);
+      vsy[i] = S * (cam.fy * pc[i].y() / z + cam.cy);
+      viz[i] = float(1.0 / z);
+    } else {
+      viz[i] = 0.0f;
+    }
+  }
+
+  // Per-face sample bounding boxes (parallel); faces crossing the near plane are clipped
+  // serially into separate raster triangles. Triangle ids: face f -> f, clipped piece k -> M + k.
+  struct Box {
+    int x0, y0, x1, y1;
+  };
+  std::vector<Box> boxes(static_cast<size_t>(M));
+  std::vector<char> needs_clip(static_cast<size_t>(M), 0);
+#pragma omp parallel for schedule(static)
+  for (long f = 0; f < M; ++f) {
+    Box& bx = boxes[size_t(f)];
+    bx = {1, 1, 0, 0};  // empty
+    int nin = 0;
+    for (int k = 0; k < 3; ++k) nin += pc[F(f, k)].z() >= opt.near;
+    if (nin == 0) continue;
+    if (nin < 3) {
+      needs_clip[size_t(f)] = 1;
+      continue;
+    }
+    double sx[3], sy[3];
+    float iz[3];
+    for (int k = 0; k < 3; ++k) {
+      sx[k] = vsx[F(f, k)];
+      sy[k] = vsy[F(f, k)];
+      iz[k] = viz[F(f, k)];
+    }
+    RasterTri t;
+    if (setup_triangle(sx, sy, iz, int(f), SW, SH, opt.cull_backfaces, t))
+      bx = {t.x0, t.y0, t.x1, t.y1};
+  }
+  std::vector<RasterTri> clipped;
   {
     const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
     for (long f = 0; f < M; ++f) {
+      if (!needs_clip[size_t(f)]) continue;
       ClipVert cv[3];
-      int nin = 0;
       for (int k = 0; k < 3; ++k) {
         cv[k].p = pc[F(f, k)];
         cv[k].b = I.col(k);
-        nin += cv[k].p.z() >= opt.near;
-      }
-      if (nin == 0) continue;
-      RasterTri t;
-      if (nin == 3) {
-        if (setup_triangle(cv, int(f), cam, S, SW, SH, opt.cull_backfaces, false, t))
-          tris.push_back(t);
-        continue;
       }
       ClipVert poly[4];
       const int n = clip_near(cv, opt.near, poly);
       for (int k = 1; k + 1 < n; ++k) {
         ClipVert tri[3] = {poly[0], poly[k], poly[k + 1]};
-        if (setup_triangle(tri, int(f), cam, S, SW, SH, opt.cull_backfaces, true, t))
-          tris.push_back(t);
+        RasterTri t;
+        if (setup_clipped(tri, int(f), cam, S, SW, SH, opt.cull_backfaces, t)) clipped.push_back(t);
       }
     }
   }
+  auto box_of = [&](long id) -> Box {
+    if (id < M) return boxes[size_t(id)];
+    const RasterTri& t = clipped[size_t(id - M)];
+    return {t.x0, t.y0, t.x1, t.y1};
+  };
+  const long num_ids = M + long(clipped.size());
 
-  // Binning into tiles (tile = T x T output pixels = T*S x T*S samples).
+  // Binning into tiles (tile = T x T output pixels = T*S x T*S samples), in id order.
   const int T = opt.tile_size, TS = T * S;
   const int tiles_x = (W + T - 1) / T, tiles_y = (H + T - 1) / T;
   const int num_tiles = tiles_x * tiles_y;
   std::vector<int> tile_start(size_t(num_tiles) + 1, 0);
-  for (const auto& t : tris)
-    for (int ty = t.y0 / TS; ty <= t.y1 / TS; ++ty)
-      for (int tx = t.x0 / TS; tx <= t.x1 / TS; ++tx) ++tile_start[size_t(ty * tiles_x + tx) + 1];
+  for (long id = 0; id < num_ids; ++id) {
+    const Box bx = box_of(id);
+    if (bx.x0 > bx.x1) continue;
+    for (int ty = bx.y0 / TS; ty <= bx.y1 / TS; ++ty)
+      for (int tx = bx.x0 / TS; tx <= bx.x1 / TS; ++tx) ++tile_start[size_t(ty * tiles_x + tx) + 1];
+  }
   for (int i = 0; i < num_tiles; ++i) tile_start[i + 1] += tile_start[i];
   std::vector<int> tile_tris(size_t(tile_start[num_tiles]));
   {
     std::vector<int> fill(tile_start.begin(), tile_start.end() - 1);
-    for (int i = 0; i < int(tris.size()); ++i) {
-      const auto& t = tris[i];
-      for (int ty = t.y0 / TS; ty <= t.y1 / TS; ++ty)
-        for (int tx = t.x0 / TS; tx <= t.x1 / TS; ++tx) tile_tris[fill[ty * tiles_x + tx]++] = i;
+    for (long id = 0; id < num_ids; ++id) {
+      const Box bx = box_of(id);
+      if (bx.x0 > bx.x1) continue;
+      for (int ty = bx.y0 / TS; ty <= bx.y1 / TS; ++ty)
+        for (int tx = bx.x0 / TS; tx <= bx.x1 / TS; ++tx)
+          tile_tris[size_t(fill[size_t(ty * tiles_x + tx)]++)] = int(id);
     }
   }
 
@@ -286,7 +341,22 @@ MeshRenderOutput render_mesh(const Camera& cam, const MeshRenderInput& in,
 
       for (int q = tile_start[tile]; q < tile_start[tile + 1]; ++q) {
         const int ti = tile_tris[q];
-        const RasterTri& t = tris[ti];
+        RasterTri local;
+        const RasterTri* tp;
+        if (ti < M) {
+          double sx[3], sy[3];
+          float iz[3];
+          for (int k = 0; k < 3; ++k) {
+            sx[k] = vsx[F(ti, k)];
+            sy[k] = vsy[F(ti, k)];
+            iz[k] = viz[F(ti, k)];
+          }
+          setup_triangle(sx, sy, iz, ti, SW, SH, opt.cull_backfaces, local);
+          tp = &local;
+        } else {
+          tp = &clipped[size_t(ti - M)];
+        }
+        const RasterTri& t = *tp;
         const int ix0 = std::max(t.x0, sx0), ix1 = std::min(t.x1, sx1);
         const int iy0 = std::max(t.y0, sy0), iy1 = std::min(t.y1, sy1);
         for (int j = iy0; j <= iy1; ++j) {
@@ -333,9 +403,21 @@ MeshRenderOutput render_mesh(const Camera& cam, const MeshRenderInput& in,
                 continue;
               }
               ++covered;
-              const RasterTri& t = tris[ti];
+              const bool is_face = ti < M;
+              const RasterTri* ct = is_face ? nullptr : &clipped[size_t(ti - M)];
+              const int f = is_face ? ti : ct->face;
+              const int v0 = F(f, 0), v1 = F(f, 1), v2 = F(f, 2);
               const float l1 = l1buf[s], l2 = l2buf[s], l0 = 1.0f - l1 - l2;
-              float q0 = l0 * t.iz[0], q1 = l1 * t.iz[1], q2 = l2 * t.iz[2];
+              float q0, q1, q2;
+              if (is_face) {
+                q0 = l0 * viz[v0];
+                q1 = l1 * viz[v1];
+                q2 = l2 * viz[v2];
+              } else {
+                q0 = l0 * ct->iz[0];
+                q1 = l1 * ct->iz[1];
+                q2 = l2 * ct->iz[2];
+              }
               const float iz = q0 + q1 + q2;
               const float z = 1.0f / iz;
               zmin = std::min(zmin, z);
@@ -343,12 +425,10 @@ MeshRenderOutput render_mesh(const Camera& cam, const MeshRenderInput& in,
               q1 /= iz;
               q2 /= iz;
               float b[3] = {q0, q1, q2};
-              if (t.clipped) {
+              if (!is_face) {
                 for (int m = 0; m < 3; ++m)
-                  b[m] = q0 * t.bary[0][m] + q1 * t.bary[1][m] + q2 * t.bary[2][m];
+                  b[m] = q0 * ct->bary[0][m] + q1 * ct->bary[1][m] + q2 * ct->bary[2][m];
               }
-              const int f = t.face;
-              const int v0 = F(f, 0), v1 = F(f, 1), v2 = F(f, 2);
               Eigen::Vector3f n = Eigen::Vector3f::Zero();
               if (need_normals) {
                 for (int k = 0; k < 3; ++k)

@@ -222,6 +222,27 @@ TEST(BodyModel, SaveLoadRoundTrip) {
   EXPECT_EQ(a.part_labels, b.part_labels);
 }
 
+TEST(BodyModel, SmplxV11ShapeSplit) {
+  // SMPL-X v1.1: shapedirs 400 wide = 300 shape + 100 expression.
+  RefModel ref;
+  RandomSpec sp;
+  sp.J = 55;
+  sp.S = 400;
+  sp.V = 20;
+  const auto arrays = testing::random_model(sp, 31u, ref);
+  const std::string p = tmp_path("v11.npz");
+  write_npz(p, arrays);
+  const BodyModel m = load_body_model(p);
+  fs::remove(p);
+  EXPECT_EQ(m.num_betas, 300);
+  EXPECT_EQ(m.num_expression, 100);
+  const Sample s = random_params(m, 9u);
+  const BodyState st = body_forward(m, s.params);
+  std::vector<double> rv, rj;
+  testing::ref_forward(ref, s.coeffs, s.pose, s.transl, rv, rj);
+  EXPECT_LT(max_vertex_error(st, rv), 1e-9);
+}
+
 TEST(BodyModel, PartLabelsFromWeights) {
   // SMPL-X: finger joints count for the hand, jaw/eyes for the head.
   Eigen::MatrixXd w = Eigen::MatrixXd::Zero(4, 55);
@@ -314,23 +335,29 @@ TEST(BodyModelMalformed, InconsistentShapesAreNamed) {
 
 TEST(BodyModelMalformed, ObjectArraysAreSkippedOrExplained) {
   RefModel ref;
-  auto arrays = testing::random_model(RandomSpec{}, 5u, ref);
-  // An object-dtype entry ('|O', pickled) beside the real arrays is skipped.
-  std::map<std::string, NpyArray> a = arrays;
+  const auto base = testing::random_model(RandomSpec{}, 5u, ref);
+  // An object-dtype entry ('|O', a pickled Python object) beside the real arrays is skipped.
+  NpyArray obj;
+  obj.kind = 'O';
+  obj.itemsize = 1;
+  obj.shape = {};
+  obj.data = {0x4e};  // a stand-in for pickle bytes; never parsed
   const std::string p = tmp_path("obj.npz");
+  auto a = base;
+  a["part2num"] = obj;
   write_npz(p, a);
-  // Splice an object array into the archive by rebuilding it with a raw entry.
-  std::vector<uint8_t> obj = {0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0};
-  std::string h = "{'descr': '|O', 'fortran_order': False, 'shape': (), }";
-  while ((10 + h.size() + 1) % 64) h.push_back(' ');
-  h.push_back('\n');
-  obj.push_back(uint8_t(h.size()));
-  obj.push_back(0);
-  obj.insert(obj.end(), h.begin(), h.end());
-  for (uint8_t c : {0x80, 0x02, 0x4e, 0x2e}) obj.push_back(c);  // pickle of None
-  NpyArray dummy;
-  ASSERT_FALSE(parse_npy(obj.data(), obj.size(), "obj", dummy));
+  const NpzFile z = read_npz(p);
+  EXPECT_EQ(z.skipped, std::vector<std::string>{"part2num"});
+  const BodyModel m = load_body_model(p);
+  EXPECT_EQ(m.num_vertices(), ref.V);
+  // A J_regressor stored as an object (a pickled scipy sparse matrix) gets a clear hint.
+  a = base;
+  a["J_regressor"] = obj;
+  write_npz(p, a);
+  const std::string e = error_of([&] { load_body_model(p); });
   fs::remove(p);
+  EXPECT_NE(e.find("'J_regressor' is stored as a Python object"), std::string::npos) << e;
+  EXPECT_NE(e.find("dense"), std::string::npos) << e;
 }
 
 TEST(BodyModelMalformed, PklAndNonZip) {

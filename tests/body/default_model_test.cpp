@@ -112,6 +112,11 @@ TEST(DefaultBody, SkeletonAndProportions) {
     EXPECT_NEAR(J(l, 0), -J(l + 1, 0), 1e-6);
     EXPECT_NEAR(J(l, 1), J(l + 1, 1), 1e-6);
   }
+  // The regressor reproduces the designed skeleton (docs/body-models.md) exactly.
+  EXPECT_LT((J.row(0) - Eigen::RowVector3d(0, -0.22, 0)).norm(), 1e-9);
+  EXPECT_LT((J.row(20) - Eigen::RowVector3d(0.68, 0.18, -0.03)).norm(), 1e-9);
+  EXPECT_LT((J.row(21) - Eigen::RowVector3d(-0.68, 0.18, -0.03)).norm(), 1e-9);
+  EXPECT_LT((J.row(15) - Eigen::RowVector3d(0, 0.36, 0.02)).norm(), 1e-9);
   EXPECT_GT(J(15, 1), J(12, 1));
   EXPECT_GT(J(12, 1), J(9, 1));
   EXPECT_LT(J(7, 1), J(4, 1));
