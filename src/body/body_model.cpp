@@ -358,9 +358,18 @@ void save_body_model(const std::string& path, const BodyModel& m) {
   {
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> r = m.shapedirs;
     a["shapedirs"] = NpyArray::from_doubles({V, 3, S}, r.data());
-    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> q = m.posedirs;
-    // All-zero correctives (the default model) are written as float32: exact and half the size.
-    a["posedirs"] = NpyArray::from_doubles({V, 3, P}, q.data(), m.posedirs.isZero(0));
+    if (m.posedirs.isZero(0)) {
+      // All-zero correctives (the default model): float32 zeros, exact and half the size.
+      NpyArray z;
+      z.kind = 'f';
+      z.itemsize = 4;
+      z.shape = {V, 3, P};
+      z.data.assign(size_t(V) * 3 * size_t(P) * 4, 0);
+      a["posedirs"] = std::move(z);
+    } else {
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> q = m.posedirs;
+      a["posedirs"] = NpyArray::from_doubles({V, 3, P}, q.data());
+    }
   }
   a["J_regressor"] = NpyArray::from_matrix(m.J_regressor);
   a["weights"] = NpyArray::from_matrix(m.weights);
@@ -590,15 +599,19 @@ BodyState body_forward(const BodyModel& m, const BodyParams& params) {
     s.joints.row(j) = (G[size_t(j)].topRightCorner<3, 1>() + params.transl).transpose();
   }
 
-  // Linear blend skinning.
+  // Linear blend skinning. Joint-outer loop so the (column-major) weights are read contiguously.
   s.vertices.resize(V, 3);
-#pragma omp parallel for schedule(static) if (V > 4096)
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(12, V);  // per-vertex blended 3x4 transform
+  for (int j = 0; j < J; ++j) {
+    Eigen::Matrix<double, 12, 1> t;
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 3; ++r) t[3 * c + r] = s.transforms[size_t(j)](r, c);
+    const double* w = m.weights.col(j).data();
+    for (int v = 0; v < V; ++v)
+      if (w[v] != 0.0) A.col(v) += w[v] * t;
+  }
   for (int v = 0; v < V; ++v) {
-    Eigen::Matrix<double, 3, 4> M = Eigen::Matrix<double, 3, 4>::Zero();
-    for (int j = 0; j < J; ++j) {
-      const double w = m.weights(v, j);
-      if (w != 0.0) M += w * s.transforms[size_t(j)].topRows<3>();
-    }
+    const Eigen::Map<const Eigen::Matrix<double, 3, 4>> M(A.col(v).data());
     const Eigen::Vector3d x = (s.rest_vertices.row(v) + s.pose_offsets.row(v)).transpose();
     s.vertices.row(v) = (M.leftCols<3>() * x + M.col(3)).transpose();
   }

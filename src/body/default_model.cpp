@@ -186,6 +186,7 @@ TriMesh polygonise(const ImplicitBody& f, double h) {
   auto pos = [&](int i, int j, int k) { return Vec3((i - hx) * h, y0 + j * h, z0 + k * h); };
   auto id = [&](int i, int j, int k) { return int64_t(i) + int64_t(nx) * (j + int64_t(ny) * k); };
   std::vector<double> val(size_t(nx) * ny * nz);
+#pragma omp parallel for schedule(static)
   for (int k = 0; k < nz; ++k)
     for (int j = 0; j < ny; ++j)
       for (int i = 0; i < nx; ++i) {
@@ -278,12 +279,14 @@ void relax(TriMesh& m, const ImplicitBody& f, int iterations) {
   const Eigen::Index N = m.V.rows();
   Eigen::MatrixXd W(N, 3);
   for (int it = 0; it < iterations; ++it) {
+#pragma omp parallel for schedule(static)
     for (Eigen::Index v = 0; v < N; ++v) {
       Eigen::RowVector3d c = Eigen::RowVector3d::Zero();
       for (int u : adj[size_t(v)]) c += m.V.row(u);
       c /= double(adj[size_t(v)].size());
       W.row(v) = m.V.row(v) + 0.5 * (c - m.V.row(v));
     }
+#pragma omp parallel for schedule(dynamic, 256)
     for (Eigen::Index v = 0; v < N; ++v) {
       Vec3 p = W.row(v).transpose();
       for (int s = 0; s < 3; ++s) {

@@ -129,16 +129,22 @@ std::vector<uint8_t> inflate_raw(const uint8_t* src, size_t n, size_t out_size,
   return out;
 }
 
-std::vector<uint8_t> deflate_raw(const std::vector<uint8_t>& src) {
+// Raw deflate of the concatenation of two buffers (an .npy header and its data, never copied).
+std::vector<uint8_t> deflate_raw(const uint8_t* a, size_t na, const uint8_t* b, size_t nb) {
   z_stream zs{};
   if (deflateInit2(&zs, 6, Z_DEFLATED, -MAX_WBITS, 8, Z_DEFAULT_STRATEGY) != Z_OK)
     throw Error("zlib deflate init failed");
-  std::vector<uint8_t> out(deflateBound(&zs, uLong(src.size())));
-  zs.next_in = const_cast<Bytef*>(src.data());
-  zs.avail_in = uInt(src.size());
+  std::vector<uint8_t> out(deflateBound(&zs, uLong(na + nb)));
   zs.next_out = out.data();
   zs.avail_out = uInt(out.size());
-  const int rc = deflate(&zs, Z_FINISH);
+  zs.next_in = const_cast<Bytef*>(a);
+  zs.avail_in = uInt(na);
+  int rc = deflate(&zs, Z_NO_FLUSH);
+  if (rc == Z_OK) {
+    zs.next_in = const_cast<Bytef*>(b);
+    zs.avail_in = uInt(nb);
+    rc = deflate(&zs, Z_FINISH);
+  }
   const size_t produced = zs.total_out;
   deflateEnd(&zs);
   if (rc != Z_STREAM_END) throw Error("zlib deflate failed");
@@ -328,7 +334,8 @@ bool parse_npy(const uint8_t* data, size_t size, const std::string& what, NpyArr
   return true;
 }
 
-std::vector<uint8_t> serialize_npy(const NpyArray& a) {
+namespace {
+std::vector<uint8_t> npy_header(const NpyArray& a) {
   std::string h =
       "{'descr': '" + a.descr() + "', 'fortran_order': False, 'shape': " + a.shape_string() + ", }";
   // Pad so that magic(6)+version(2)+len(2)+header is a multiple of 64, ending in '\n'.
@@ -339,6 +346,12 @@ std::vector<uint8_t> serialize_npy(const NpyArray& a) {
   std::vector<uint8_t> b = {0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0};
   wr16(b, uint32_t(h.size()));
   b.insert(b.end(), h.begin(), h.end());
+  return b;
+}
+}  // namespace
+
+std::vector<uint8_t> serialize_npy(const NpyArray& a) {
+  std::vector<uint8_t> b = npy_header(a);
   b.insert(b.end(), a.data.begin(), a.data.end());
   return b;
 }
@@ -431,17 +444,20 @@ std::vector<uint8_t> npz_bytes(const std::map<std::string, NpyArray>& arrays, bo
   std::vector<uint8_t> out, cd;
   uint32_t count = 0;
   for (const auto& [key, arr] : arrays) {
-    const std::vector<uint8_t> raw = serialize_npy(arr);
+    const std::vector<uint8_t> header = npy_header(arr);
+    const size_t raw_size = header.size() + arr.data.size();
     const std::string name = key + ".npy";
-    const uint32_t crc = uint32_t(crc32(0L, raw.data(), uInt(raw.size())));
+    uint32_t crc = uint32_t(crc32(0L, header.data(), uInt(header.size())));
+    // (zlib's crc32 returns the initial value for a null buffer: skip empty data.)
+    if (!arr.data.empty()) crc = uint32_t(crc32(crc, arr.data.data(), uInt(arr.data.size())));
     std::vector<uint8_t> comp;
     uint16_t method = 0;
     if (compress) {
-      comp = deflate_raw(raw);
+      comp = deflate_raw(header.data(), header.size(), arr.data.data(), arr.data.size());
       method = 8;
     }
-    const std::vector<uint8_t>& payload = compress ? comp : raw;
-    if (raw.size() >= 0xffffffffu || out.size() + payload.size() >= 0xffffffffu)
+    const size_t payload_size = compress ? comp.size() : raw_size;
+    if (raw_size >= 0xffffffffu || out.size() + payload_size >= 0xffffffffu)
       throw Error("npz writer: array '" + key + "' too large (zip64 is not supported)");
     const uint32_t off = uint32_t(out.size());
     // Local header.
@@ -452,12 +468,17 @@ std::vector<uint8_t> npz_bytes(const std::map<std::string, NpyArray>& arrays, bo
     wr16(out, 0);     // time
     wr16(out, 0x21);  // date 1980-01-01
     wr32(out, crc);
-    wr32(out, uint32_t(payload.size()));
-    wr32(out, uint32_t(raw.size()));
+    wr32(out, uint32_t(payload_size));
+    wr32(out, uint32_t(raw_size));
     wr16(out, uint32_t(name.size()));
     wr16(out, 0);
     out.insert(out.end(), name.begin(), name.end());
-    out.insert(out.end(), payload.begin(), payload.end());
+    if (compress) {
+      out.insert(out.end(), comp.begin(), comp.end());
+    } else {
+      out.insert(out.end(), header.begin(), header.end());
+      out.insert(out.end(), arr.data.begin(), arr.data.end());
+    }
     // Central directory record.
     wr32(cd, 0x02014b50u);
     wr16(cd, 20);
@@ -467,8 +488,8 @@ std::vector<uint8_t> npz_bytes(const std::map<std::string, NpyArray>& arrays, bo
     wr16(cd, 0);
     wr16(cd, 0x21);
     wr32(cd, crc);
-    wr32(cd, uint32_t(payload.size()));
-    wr32(cd, uint32_t(raw.size()));
+    wr32(cd, uint32_t(payload_size));
+    wr32(cd, uint32_t(raw_size));
     wr16(cd, uint32_t(name.size()));
     wr16(cd, 0);
     wr16(cd, 0);

@@ -31,7 +31,7 @@ struct RasterResultD {
   std::vector<int> radii;
   std::vector<double> means2d, conics, colors, depths, cov3d;
   std::vector<uint8_t> sh_clamped;
-  std::vector<double> opacities;
+  std::vector<double> opacities, packed;
   std::vector<int> rects;
   std::vector<uint32_t> point_list, tile_ranges;
   std::vector<double> final_T;

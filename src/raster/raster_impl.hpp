@@ -53,7 +53,8 @@ struct PhaseTimer {
 };
 
 constexpr int kTS = kTileSize;
-constexpr int kNG = 9;  // per-Gaussian screen-space grads: mx, my, a, b, c, opacity, r, g, b
+constexpr int kRec = 16;  // packed render record per visible Gaussian
+constexpr int kNG = 9;    // per-Gaussian screen-space grads: mx, my, a, b, c, opacity, r, g, b
 constexpr int kTilePixels = kTS * kTS;
 constexpr int kBatch = 64;
 // Pixels of a tile row processed together (one SIMD vector on the baseline SSE2 build).
@@ -311,18 +312,15 @@ template <int CW, class T, class Res>
   for (uint32_t b0 = start; b0 < end && tile_live > 0; b0 += kBatch) {
     const int n = int(std::min<uint32_t>(kBatch, end - b0));
     for (int k = 0; k < n; ++k) {
-      const uint32_t id = out.point_list[b0 + k];
-      bmx[k] = out.means2d[2 * id] - T(ox);
-      bmy[k] = out.means2d[2 * id + 1] - T(oy);
-      ba[k] = out.conics[3 * id], bb[k] = out.conics[3 * id + 1], bc[k] = out.conics[3 * id + 2];
-      bo[k] = out.opacities[id];
-      br[k] = out.colors[3 * id], bgc[k] = out.colors[3 * id + 1], bbl[k] = out.colors[3 * id + 2];
-      bz[k] = out.depths[id];
-      const int* rc = &out.rects[4 * size_t(id)];
-      bx0[k] = std::max(rc[0] - ox, 0) / CW;
-      bx1[k] = std::min(rc[1] - ox, kTS - 1) / CW;
-      by0[k] = std::max(rc[2] - oy, 0);
-      by1[k] = std::min(rc[3] - oy, kTS - 1);
+      const T* rec = &out.packed[size_t(kRec) * out.point_list[b0 + k]];
+      bmx[k] = rec[0] - T(ox);
+      bmy[k] = rec[1] - T(oy);
+      ba[k] = rec[2], bb[k] = rec[3], bc[k] = rec[4], bo[k] = rec[5];
+      br[k] = rec[6], bgc[k] = rec[7], bbl[k] = rec[8], bz[k] = rec[9];
+      bx0[k] = std::max(int(rec[10]) - ox, 0) / CW;
+      bx1[k] = std::min(int(rec[11]) - ox, kTS - 1) / CW;
+      by0[k] = std::max(int(rec[12]) - oy, 0);
+      by1[k] = std::min(int(rec[13]) - oy, kTS - 1);
     }
     for (int k = 0; k < n && tile_live > 0; ++k) {
       const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
@@ -426,20 +424,17 @@ template <int CW, class T, class Res, class Img>
     const int lo = std::max(0, hi - kBatch);
     for (int j = lo; j < hi; ++j) {
       const int k = j - lo;
-      const uint32_t id = fwd.point_list[start + j];
-      bid[k] = id;
-      bmx[k] = fwd.means2d[2 * id] - T(ox);
-      bmy[k] = fwd.means2d[2 * id + 1] - T(oy);
-      ba[k] = fwd.conics[3 * id], bb[k] = fwd.conics[3 * id + 1];
-      bc[k] = fwd.conics[3 * id + 2];
-      bo[k] = fwd.opacities[id];
-      br[k] = fwd.colors[3 * id], bgc[k] = fwd.colors[3 * id + 1];
-      bbl[k] = fwd.colors[3 * id + 2];
-      const int* rc = &fwd.rects[4 * size_t(id)];
-      bx0[k] = std::max(rc[0] - ox, 0) / CW;
-      bx1[k] = std::min(rc[1] - ox, kTS - 1) / CW;
-      by0[k] = std::max(rc[2] - oy, 0);
-      by1[k] = std::min(rc[3] - oy, kTS - 1);
+      const uint32_t rank = fwd.point_list[start + j];
+      bid[k] = fwd.scratch_ids[rank];
+      const T* rec = &fwd.packed[size_t(kRec) * rank];
+      bmx[k] = rec[0] - T(ox);
+      bmy[k] = rec[1] - T(oy);
+      ba[k] = rec[2], bb[k] = rec[3], bc[k] = rec[4], bo[k] = rec[5];
+      br[k] = rec[6], bgc[k] = rec[7], bbl[k] = rec[8];
+      bx0[k] = std::max(int(rec[10]) - ox, 0) / CW;
+      bx1[k] = std::min(int(rec[11]) - ox, kTS - 1) / CW;
+      by0[k] = std::max(int(rec[12]) - oy, 0);
+      by1[k] = std::min(int(rec[13]) - oy, kTS - 1);
     }
     for (int j = hi - 1; j >= lo; --j) {
       const int k = j - lo;
@@ -624,6 +619,21 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
     }
   radix_sort(keys, ids, out.scratch_keys2, out.scratch_ids2);
   const size_t nvis = ids.size();
+  // Render data packed per visible Gaussian in depth order (one 64-byte record for float), so
+  // the tile loops read contiguous records instead of gathering from eight arrays.
+  out.packed.resize(size_t(kRec) * nvis);
+#pragma omp parallel for schedule(static)
+  for (size_t k = 0; k < nvis; ++k) {
+    const uint32_t id = ids[k];
+    T* rec = &out.packed[size_t(kRec) * k];
+    rec[0] = out.means2d[2 * id], rec[1] = out.means2d[2 * id + 1];
+    rec[2] = out.conics[3 * id], rec[3] = out.conics[3 * id + 1], rec[4] = out.conics[3 * id + 2];
+    rec[5] = out.opacities[id];
+    rec[6] = out.colors[3 * id], rec[7] = out.colors[3 * id + 1], rec[8] = out.colors[3 * id + 2];
+    rec[9] = out.depths[id];
+    for (int q = 0; q < 4; ++q) rec[10 + q] = T(out.rects[4 * size_t(id) + q]);
+    rec[14] = rec[15] = 0;
+  }
   timer.mark("sort");
 
   // 3. Binning: per thread per tile counts, prefix sum, scatter in depth order (stable).
@@ -637,8 +647,9 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
     uint32_t* cnt = &counts[size_t(tid) * ntiles];
     std::fill(cnt, cnt + ntiles, 0u);
     for (size_t k = b; k < e; ++k) {
-      const int* r = &out.rects[4 * size_t(ids[k])];
-      const int tx0 = r[0] / kTS, tx1 = r[1] / kTS, ty0 = r[2] / kTS, ty1 = r[3] / kTS;
+      const T* r = &out.packed[size_t(kRec) * k + 10];
+      const int tx0 = int(r[0]) / kTS, tx1 = int(r[1]) / kTS, ty0 = int(r[2]) / kTS,
+                ty1 = int(r[3]) / kTS;
       for (int ty = ty0; ty <= ty1; ++ty)
         for (int tx = tx0; tx <= tx1; ++tx) ++cnt[ty * tiles_x + tx];
     }
@@ -659,11 +670,11 @@ void forward_impl(const G& g, const Camera& camera, const RasterSettings& s, Res
       out.point_list.resize(off);
     }
     for (size_t k = b; k < e; ++k) {
-      const uint32_t id = ids[k];
-      const int* r = &out.rects[4 * size_t(id)];
-      const int tx0 = r[0] / kTS, tx1 = r[1] / kTS, ty0 = r[2] / kTS, ty1 = r[3] / kTS;
+      const T* r = &out.packed[size_t(kRec) * k + 10];
+      const int tx0 = int(r[0]) / kTS, tx1 = int(r[1]) / kTS, ty0 = int(r[2]) / kTS,
+                ty1 = int(r[3]) / kTS;
       for (int ty = ty0; ty <= ty1; ++ty)
-        for (int tx = tx0; tx <= tx1; ++tx) out.point_list[cnt[ty * tiles_x + tx]++] = id;
+        for (int tx = tx0; tx <= tx1; ++tx) out.point_list[cnt[ty * tiles_x + tx]++] = uint32_t(k);
     }
   }
 

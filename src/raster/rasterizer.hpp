@@ -29,14 +29,17 @@ struct RasterResult {
   std::vector<int> radii;      // pixel radius ceil(3 sigma_max), 0 = not visible (culled)
   std::vector<float> means2d;  // 2N, pixel coordinates
   // Internal state for backward (projected conics, colours, tile lists, per-pixel counts).
-  std::vector<float> conics;          // 3N (a, b, c) of the inverse 2D covariance
-  std::vector<float> colors;          // 3N evaluated SH colours
-  std::vector<float> depths;          // N camera-space z
-  std::vector<float> cov3d;           // 6N (xx, xy, xz, yy, yz, zz)
-  std::vector<uint8_t> sh_clamped;    // 3N
-  std::vector<float> opacities;       // N activated opacity
-  std::vector<int> rects;             // 4N pixel bounding box x0, x1, y0, y1 (inclusive)
-  std::vector<uint32_t> point_list;   // sorted Gaussian ids, tile-major then depth
+  std::vector<float> conics;        // 3N (a, b, c) of the inverse 2D covariance
+  std::vector<float> colors;        // 3N evaluated SH colours
+  std::vector<float> depths;        // N camera-space z
+  std::vector<float> cov3d;         // 6N (xx, xy, xz, yy, yz, zz)
+  std::vector<uint8_t> sh_clamped;  // 3N
+  std::vector<float> opacities;     // N activated opacity
+  std::vector<int> rects;           // 4N pixel bounding box x0, x1, y0, y1 (inclusive)
+  // Visible Gaussians in depth order: scratch_ids[rank] = Gaussian id, packed[16 rank ..] =
+  // render record (mean2d, conic, opacity, rgb, depth, pixel rect).
+  std::vector<float> packed;
+  std::vector<uint32_t> point_list;   // depth ranks (see packed), tile-major then depth
   std::vector<uint32_t> tile_ranges;  // 2 * tiles: [start, end) into point_list
   std::vector<float> final_T;         // per pixel
   std::vector<uint32_t> n_contrib;    // per pixel: index one past the last contributor (in tile)

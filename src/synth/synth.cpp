@@ -790,7 +790,12 @@ void run_synth(const SynthRunConfig& cfg) {
     model = std::shared_ptr<const BodyModel>(&default_body_model(), [](const BodyModel*) {});
   else
     model = std::make_shared<const BodyModel>(load_body_model(cfg.body_model));
-  const SynthPerson person = make_synth_person(model, cfg.body_model, cfg.seed, cfg.options);
+  // Datasets resolve a relative model path against their own directory: record it absolute.
+  const std::string model_name =
+      cfg.body_model == "default"
+          ? cfg.body_model
+          : std::filesystem::absolute(cfg.body_model).lexically_normal().string();
+  const SynthPerson person = make_synth_person(model, model_name, cfg.seed, cfg.options);
   const int W = cfg.width, H = cfg.height;
   const Vec3 white(1, 1, 1);
 
@@ -828,7 +833,7 @@ void run_synth(const SynthRunConfig& cfg) {
     subject["format"] = "kinesplat-synth-subject";
     subject["version"] = "1.0";
     subject["seed"] = cfg.seed;
-    subject["body_model"] = cfg.body_model;
+    subject["body_model"] = model_name;
     subject["betas"] =
         std::vector<double>(person.betas.data(), person.betas.data() + person.betas.size());
     subject["pose"] = pose_json(synth_params(person, stand));
@@ -846,7 +851,7 @@ void run_synth(const SynthRunConfig& cfg) {
 
   auto make_dataset = [&]() {
     Dataset d;
-    d.body_model = cfg.body_model;
+    d.body_model = model_name;
     d.betas = person.betas;
     return d;
   };

@@ -6,6 +6,7 @@
 #include <functional>
 #include <random>
 
+#include "core/error.hpp"
 #include "raster/raster_double.hpp"
 #include "raster/raster_scene.hpp"
 
@@ -280,6 +281,43 @@ TEST(RasterGrad, FloatMatchesDouble) {
   cmp("opacity", gf.opacity_logits, gdd.opacity_logits);
   cmp("sh", gf.sh, gdd.sh);
   cmp("means2d", gf.means2d, gdd.means2d);
+}
+
+}  // namespace
+}  // namespace ks
+
+namespace ks {
+namespace {
+
+TEST(Raster, EmptyAndDegenerateInputs) {
+  const Camera cam = test_camera(20, 18);
+  RasterSettings s;
+  s.background[0] = 0.25f;
+  Gaussians empty;
+  RasterResult r;
+  rasterize_forward(empty, cam, s, r);
+  for (int i = 0; i < 20 * 18; ++i) {
+    EXPECT_EQ(r.color.data[3 * i], 0.25f);
+    EXPECT_EQ(r.alpha.data[i], 0.f);
+  }
+  RasterGrads gr;
+  Image dc(20, 18, 3, 1.f);
+  rasterize_backward(empty, cam, s, r, dc, Image(), gr);
+  EXPECT_TRUE(gr.means.empty());
+  // NaN mean, zero quaternion and a huge Gaussian: culled or clipped, never a crash.
+  Gaussians g;
+  g.resize(3);
+  g.means = {std::nanf(""), 0, 0, 0, 0, 0, 0.1f, 0, 0};
+  g.quats[4] = 0;                                         // second: zero quaternion
+  for (int a = 0; a < 3; ++a) g.log_scales[6 + a] = 8.f;  // third: e^8 m
+  rasterize_forward(g, cam, s, r);
+  EXPECT_EQ(r.radii[0], 0);
+  EXPECT_EQ(r.radii[1], 0);
+  for (float v : r.color.data) EXPECT_TRUE(std::isfinite(v));
+  rasterize_backward(g, cam, s, r, dc, Image(), gr);
+  for (float v : gr.means) EXPECT_TRUE(std::isfinite(v));
+  // Mismatched gradient image sizes are a clear error.
+  EXPECT_THROW(rasterize_backward(g, cam, s, r, Image(5, 5, 3), Image(), gr), Error);
 }
 
 }  // namespace

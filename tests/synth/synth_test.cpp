@@ -183,7 +183,7 @@ TEST(Synth, TinyRunWritesEverything) {
   cfg.width = 64;
   cfg.height = 96;
   cfg.frames = 4;
-  cfg.options.subdivision_levels = 1;
+  cfg.options.subdivision_levels = 0;
   cfg.progress = false;
   run_synth(cfg);
   for (const char* f : {"photo.png", "photo_mask.png", "photo_keypoints.json", "subject.json",
