@@ -3,12 +3,17 @@
 # on held-out views -> a turntable video and a motion video (+ a rest-pose .ply).
 # Usage: scripts/demo.sh [path/to/kinesplat] [output dir]      (make demo calls it this way)
 # Stages whose command is not in this build are skipped with a message. Tunables (environment):
-#   KS_DEMO_ITERS (reconstruct steps), KS_DEMO_SIZE (video size WxH), KS_DEMO_MOTION (second video).
+#   KS_DEMO_ITERS (reconstruct steps, 200), KS_DEMO_SUBDIVIDE (template Loop levels, 1),
+#   KS_DEMO_SCALE (training resolution, 0.25), KS_DEMO_SIZE (video size WxH, 384x512),
+#   KS_DEMO_MOTION (second video, dance). The defaults keep the demo near 10 minutes on 2 cores;
+#   the full-quality setting is KS_DEMO_ITERS=2000 KS_DEMO_SUBDIVIDE=2 KS_DEMO_SCALE=0.5.
 set -euo pipefail
 
 KS=${1:-build/kinesplat}
 OUT=${2:-demo-out}
-ITERS=${KS_DEMO_ITERS:-600}
+ITERS=${KS_DEMO_ITERS:-200}
+SUBDIV=${KS_DEMO_SUBDIVIDE:-1}
+TRAIN_SCALE=${KS_DEMO_SCALE:-0.25}
 SIZE=${KS_DEMO_SIZE:-384x512}
 MOTION=${KS_DEMO_MOTION:-dance}
 
@@ -63,8 +68,9 @@ fi
 
 # 2. Reconstruct the avatar from the training views.
 if has reconstruct && [ -f "$SUBJECT/train/dataset.json" ]; then
-  step "reconstruct $SUBJECT/train -> $AVATAR ($ITERS steps, density control gpdc)"
-  "$KS" reconstruct "$SUBJECT/train" --out "$AVATAR" --iters "$ITERS" --density gpdc
+  step "reconstruct $SUBJECT/train -> $AVATAR ($ITERS steps, $SUBDIV Loop levels, scale $TRAIN_SCALE, density control gpdc)"
+  "$KS" reconstruct "$SUBJECT/train" --out "$AVATAR" --iters "$ITERS" --subdivide "$SUBDIV" \
+    --scale "$TRAIN_SCALE" --density gpdc
 else
   echo "demo: skipping reconstruct (command or training dataset missing)"
 fi
@@ -72,7 +78,7 @@ fi
 # 3. Evaluate on the held-out views (novel views and poses).
 if has evaluate && [ -f "$AVATAR" ] && [ -f "$SUBJECT/test/dataset.json" ]; then
   step "evaluate $AVATAR on $SUBJECT/test"
-  "$KS" evaluate "$AVATAR" "$SUBJECT/test" --out "$OUT/metrics.json" --renders "$OUT/eval"
+  "$KS" evaluate "$AVATAR" "$SUBJECT/test" --out "$OUT/metrics.json" --renders "$OUT/eval" --scale 0.5
 else
   echo "demo: skipping evaluate (command, avatar or test dataset missing)"
 fi

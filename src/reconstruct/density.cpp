@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <numeric>
 
 #include "core/error.hpp"
@@ -14,12 +15,15 @@ namespace {
 
 class ControlBase : public DensityControl {
  public:
-  explicit ControlBase(const DensityOptions& o) : opt_(o) {}
+  explicit ControlBase(const DensityOptions& o) : opt_(o) {
+    if (std::getenv("KS_DENSITY_VERBOSE")) opt_.verbose = true;
+  }
   DensityStats stats;
 
   void step(int iteration, TrainerState& state) override {
     if (!due(iteration, state.total_iterations)) return;
     if (state.num_vertices() == 0) return;
+    if (opt_.verbose) print_grad_stats(iteration, state);
     act(iteration, state);
     ++stats.steps;
     state.reset_stats();
@@ -37,12 +41,25 @@ class ControlBase : public DensityControl {
     return done >= start && done < stop && (done - start) % interval == 0;
   }
 
-  static std::vector<float> mean_grad(const TrainerState& s) {
+  void print_grad_stats(int it, const TrainerState& s) const {
+    auto g = mean_grad(s);
+    if (g.empty()) return;
+    std::sort(g.begin(), g.end());
+    auto q = [&](double p) { return g[std::min(g.size() - 1, size_t(p * double(g.size())))]; };
+    std::fprintf(stderr,
+                 "density it %d: mean view-space gradient p50 %.3g p90 %.3g p99 %.3g max %.3g "
+                 "(tau %.3g)\n",
+                 it + 1, q(0.5), q(0.9), q(0.99), g.back(), opt_.grad_threshold);
+  }
+
+  // Mean view-space gradient per vertex, in NDC units (see DensityOptions::image_width).
+  std::vector<float> mean_grad(const TrainerState& s) const {
     const int N = s.num_vertices();
+    const float to_ndc = 0.5f * float(opt_.image_width > 0 ? opt_.image_width : 256);
     std::vector<float> g(N, 0.f);
     for (int i = 0; i < N; ++i)
       if (i < int(s.grad2d_count.size()) && s.grad2d_count[i] > 0)
-        g[i] = s.grad2d_accum[i] / float(s.grad2d_count[i]);
+        g[i] = to_ndc * s.grad2d_accum[i] / float(s.grad2d_count[i]);
     return g;
   }
 
@@ -223,6 +240,7 @@ class NaiveControl : public ControlBase {
   void act(int it, TrainerState& s) override {
     if (int(s.canonical.size()) != s.num_vertices()) return;
     NaiveOptions no = opt_.naive;
+    no.grad_threshold = opt_.grad_threshold;
     no.seed = opt_.naive.seed + uint64_t(it);
     if (s.num_vertices() >= opt_.max_vertices) no.grad_threshold = INFINITY;  // prune only
     const NaiveEdit ne = naive_densify(s.anchors, s.faces, mean_grad(s), s.canonical, no);

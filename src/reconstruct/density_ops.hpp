@@ -65,11 +65,11 @@ MeshEdit collapse_vertices(const Eigen::MatrixXd& V, const Eigen::MatrixXi& F,
 // inherit anchor, skin weights and statistics; the caller then moves them to `positions` and
 // adds `log_scale_delta` to their log-scale bias.
 struct NaiveOptions {
-  float grad_threshold = 0.0003f;
-  float percent_dense = 0.01f;   // clone if max scale <= percent_dense * extent, else split
-  float prune_opacity = 0.005f;  // prune below this opacity
-  float prune_scale = 0.1f;      // prune max scale above this fraction of the extent
-  float clone_jitter = 0.1f;     // clone offset, in units of the Gaussian's scale
+  float grad_threshold = 0.0003f;  // on the gradient as given (density.cpp passes NDC units)
+  float percent_dense = 0.01f;     // clone if max scale <= percent_dense * extent, else split
+  float prune_opacity = 0.005f;    // prune below this opacity
+  float prune_scale = 0.1f;        // prune max scale above this fraction of the extent
+  float clone_jitter = 0.1f;       // clone offset, in units of the Gaussian's scale
   uint64_t seed = 0;
 };
 struct NaiveEdit {
@@ -92,7 +92,10 @@ struct DensityOptions {
   // Schedule: act every `interval` iterations within [start, stop); 0 = automatic from the
   // trainer's total: start 25%, stop 75%, interval total/10 (at least 1).
   int start = 0, stop = 0, interval = 0;
-  float grad_threshold = 0.0003f;   // tau: mean view-space gradient (trainer's units, pixels)
+  // tau on the mean view-space gradient in 3DGS's NDC units (SIAvatar: 0.0003). The trainer
+  // accumulates |dL/dmean2d| in pixels; NDC units = pixels * (training image width / 2).
+  float grad_threshold = 0.0003f;
+  int image_width = 0;  // training image width in pixels; 0: assume 256 (512 px images at 0.5)
   int max_vertices = 400000;        // no densification beyond this many vertices
   float max_split_fraction = 0.1f;  // at most this fraction of faces selected per step
   // gpdc

@@ -49,7 +49,7 @@ DensityOptions every_step() {
   o.start = 1;
   o.stop = 1000;
   o.interval = 1;
-  o.grad_threshold = 0.5f;
+  o.grad_threshold = 0.5f * 128.f;  // 0.5 px in NDC units at the assumed 256 px width
   o.max_split_fraction = 1.f;
   return o;
 }
