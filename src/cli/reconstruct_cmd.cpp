@@ -29,6 +29,9 @@ struct Args {
 
 ks::cli::CommandGroup group(40, [](CLI::App& app) {
   auto args = std::make_shared<Args>();
+  // CLI defaults sized for a 2-core CPU (docs/reconstruct.md): 41K Gaussians on the default body.
+  args->opt.iterations = 400;
+  args->opt.subdivide = 1;
   auto* sub = app.add_subcommand("reconstruct", "Fit an animatable Gaussian avatar to a dataset");
   sub->add_option("dataset", args->dataset, "Dataset directory (dataset.json + images)")
       ->required();
