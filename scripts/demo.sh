@@ -3,7 +3,7 @@
 # on held-out views -> a turntable video and a motion video (+ a rest-pose .ply).
 # Usage: scripts/demo.sh [path/to/kinesplat] [output dir]      (make demo calls it this way)
 # Stages whose command is not in this build are skipped with a message. Tunables (environment):
-#   KS_DEMO_ITERS (reconstruct steps, 200), KS_DEMO_SUBDIVIDE (template Loop levels, 1),
+#   KS_DEMO_ITERS (reconstruct steps, 400), KS_DEMO_SUBDIVIDE (template Loop levels, 1),
 #   KS_DEMO_SCALE (training resolution, 0.25), KS_DEMO_SIZE (video size WxH, 384x512),
 #   KS_DEMO_MOTION (second video, dance). The defaults keep the demo near 10 minutes on 2 cores;
 #   the full-quality setting is KS_DEMO_ITERS=2000 KS_DEMO_SUBDIVIDE=2 KS_DEMO_SCALE=0.5.
@@ -11,7 +11,7 @@ set -euo pipefail
 
 KS=${1:-build/kinesplat}
 OUT=${2:-demo-out}
-ITERS=${KS_DEMO_ITERS:-200}
+ITERS=${KS_DEMO_ITERS:-400}
 SUBDIV=${KS_DEMO_SUBDIVIDE:-1}
 TRAIN_SCALE=${KS_DEMO_SCALE:-0.25}
 SIZE=${KS_DEMO_SIZE:-384x512}
