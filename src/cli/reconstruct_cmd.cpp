@@ -79,20 +79,25 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
     a.opt.laplacian = ks::parse_laplacian_mode(a.laplacian);
     a.opt.perturb.enabled = a.perturb;
     a.opt.progress = !a.quiet;
-    std::unique_ptr<ks::DensityControl> density;
-    if (a.density != "off") {
-#ifdef KS_HAVE_DENSITY_FACTORY
-      density = ks::make_density_control(a.density);
-      a.opt.density = density.get();
-#else
+#ifndef KS_HAVE_DENSITY_FACTORY
+    if (a.density != "off")
       throw ks::Error("--density " + a.density +
                       ": density control is not built into this version (use --density off)");
 #endif
-    }
     const ks::Dataset ds = ks::Dataset::load(a.dataset);
     const ks::BodyModel model = ks::load_dataset_body_model(ds, a.dataset);
     const auto frames =
         ks::load_training_frames(ds, a.dataset, a.opt.scale, a.opt.perturb, a.opt.seed);
+    std::unique_ptr<ks::DensityControl> density;
+#ifdef KS_HAVE_DENSITY_FACTORY
+    if (a.density != "off") {
+      // Gradient thresholds are in training-image pixel units: pass the real training width.
+      ks::DensityOptions dopt;
+      dopt.image_width = frames.empty() ? 0 : frames.front().image.width;
+      density = ks::make_density_control(a.density, dopt);
+      a.opt.density = density.get();
+    }
+#endif
     ks::TrainReport rep;
     ks::Avatar av = ks::train_avatar(model, ds, frames, a.opt, &rep);
     av.metadata["density"] = a.density;
