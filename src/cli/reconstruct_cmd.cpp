@@ -24,7 +24,7 @@ struct Args {
   std::string dataset, out, laplacian = "semantic", density = "off", eval_dataset, eval_out;
   ks::TrainOptions opt;
   bool perturb = false, quiet = false;
-  float eval_scale = 1.f;
+  float eval_scale = 1.f, fine_scale = 1.f;
 };
 
 ks::cli::CommandGroup group(40, [](CLI::App& app) {
@@ -38,6 +38,12 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   sub->add_option("--out,-o", args->out, "Output avatar file (.ksavatar)")->required();
   sub->add_option("--iters", args->opt.iterations, "Optimisation steps")->capture_default_str();
   sub->add_option("--scale", args->opt.scale, "Training resolution relative to the images")
+      ->capture_default_str();
+  sub->add_option("--fine-from", args->opt.fine_from,
+                  "Coarse-to-fine: from this fraction of the iterations on, train at --fine-scale "
+                  "(1 = never)")
+      ->capture_default_str();
+  sub->add_option("--fine-scale", args->fine_scale, "Resolution of the fine phase")
       ->capture_default_str();
   sub->add_option("--subdivide", args->opt.subdivide, "Loop subdivision levels of the template")
       ->capture_default_str();
@@ -88,6 +94,12 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
     const ks::BodyModel model = ks::load_dataset_body_model(ds, a.dataset);
     const auto frames =
         ks::load_training_frames(ds, a.dataset, a.opt.scale, a.opt.perturb, a.opt.seed);
+    std::vector<ks::TrainFrame> fine_frames;
+    if (a.opt.fine_from < 1.f) {
+      fine_frames =
+          ks::load_training_frames(ds, a.dataset, a.fine_scale, a.opt.perturb, a.opt.seed);
+      a.opt.fine_frames = &fine_frames;
+    }
     std::unique_ptr<ks::DensityControl> density;
 #ifdef KS_HAVE_DENSITY_FACTORY
     if (a.density != "off") {
@@ -101,6 +113,7 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
     ks::TrainReport rep;
     ks::Avatar av = ks::train_avatar(model, ds, frames, a.opt, &rep);
     av.metadata["density"] = a.density;
+    av.metadata["fine_scale"] = a.opt.fine_from < 1.f ? a.fine_scale : a.opt.scale;
     ks::save_avatar(a.out, av);
     std::printf("avatar: %s (%d Gaussians)\n", a.out.c_str(), av.num_gaussians());
     std::printf("train: %d iterations in %.1f s (%.1f ms/iteration), train PSNR %.2f dB\n",

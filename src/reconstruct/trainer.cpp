@@ -102,8 +102,10 @@ struct Decoder {
   Mlp::Mat feats_unused;
   std::vector<float> feats;  // N x F
   Mlp::Mat Yg, Ya;
-  std::vector<float> tanh_off;  // 3N: tanh of the raw offsets
+  std::vector<float> tanh_off;     // 3N: tanh of the raw offsets
+  std::vector<float> scale_ratio;  // 3N: d log_scale_filtered / d log_scale (3D filter)
   float base_log_scale = 0, init_opacity_logit = 0;
+  float filter_var = 0;  // 3D filter variance (m^2), 0 = off
   float sh_init[3] = {0, 0, 0};
   int geo_out = 9;
 
@@ -119,6 +121,7 @@ struct Decoder {
     g.resize(n);
     offsets.resize(3 * size_t(n));
     tanh_off.resize(3 * size_t(n));
+    scale_ratio.resize(3 * size_t(n));
     const int sdim = opt.isotropic ? 1 : 3;
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; ++i) {
@@ -128,8 +131,9 @@ struct Decoder {
         tanh_off[3 * size_t(i) + k] = t;
         offsets[3 * size_t(i) + k] = opt.max_offset * t;
         g.means[3 * size_t(i) + k] = float(fit.state.anchors(i, k)) + opt.max_offset * t;
+        const float ls = base_log_scale + y[3 + (sdim == 1 ? 0 : k)] + fit.state.log_scale_bias[i];
         g.log_scales[3 * size_t(i) + k] =
-            base_log_scale + y[3 + (sdim == 1 ? 0 : k)] + fit.state.log_scale_bias[i];
+            filtered_log_scale(ls, filter_var, &scale_ratio[3 * size_t(i) + k]);
       }
       g.quats[4 * size_t(i)] = 1.f + y[3 + sdim];
       for (int k = 1; k < 4; ++k) g.quats[4 * size_t(i) + k] = y[3 + sdim + k];
@@ -217,6 +221,8 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
                     TrainReport* report) {
   if (frames.empty()) throw Error("reconstruct: no training frames");
   if (opt.iterations < 1) throw Error("reconstruct: --iters must be >= 1");
+  if (opt.fine_frames && opt.fine_from < 1.f && opt.fine_frames->size() != frames.size())
+    throw Error("reconstruct: the fine frames must be the same frames as the coarse ones");
   if (opt.subdivide < 0 || opt.subdivide > 4)
     throw Error("reconstruct: --subdivide must be in [0, 4]");
 
@@ -277,6 +283,22 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
   dec.app.init({F, opt.hidden, opt.hidden, 3}, opt.seed * 3 + 3, 0.01f);
   dec.base_log_scale = float(std::log(opt.scale_factor * mean_edge_length(st.anchors, st.faces)));
   dec.init_opacity_logit = std::log(opt.init_opacity / (1.f - opt.init_opacity));
+  double pixel_world = 0;  // world size of one training pixel at the body's root (median)
+  if (opt.filter3d > 0) {
+    std::vector<double> px;
+    // The finest frames the fit sees set the filter (the fine phase's, if any).
+    const bool use_fine = opt.fine_frames && opt.fine_from < 1.f && !opt.fine_frames->empty();
+    for (const auto& fr : use_fine ? *opt.fine_frames : frames) {
+      const BodyState bs = body_forward(model, fr.pose);
+      const double z = fr.camera.to_camera(bs.joints.row(0).transpose()).z();
+      if (z > 0) px.push_back(z / fr.camera.fx);
+    }
+    if (!px.empty()) {
+      std::nth_element(px.begin(), px.begin() + px.size() / 2, px.end());
+      pixel_world = px[px.size() / 2];
+    }
+    dec.filter_var = float(opt.filter3d * pixel_world * pixel_world);
+  }
   {
     // Initial colour: the mean foreground colour of the training frames.
     double c[3] = {0, 0, 0}, wsum = 0;
@@ -316,6 +338,12 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
   std::iota(order.begin(), order.end(), 0);
   size_t order_pos = order.size();
 
+  int fine_start = opt.iterations;
+  if (opt.fine_frames && opt.fine_from < 1.f) {
+    fine_start =
+        std::clamp(int(std::lround(double(opt.fine_from) * opt.iterations)), 0, opt.iterations);
+  }
+
   Progress progress("reconstruct", opt.iterations);
   double loss_ema = 0, psnr_ema = 0;
   float last_loss = 0;
@@ -324,7 +352,8 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       std::shuffle(order.begin(), order.end(), rng);
       order_pos = 0;
     }
-    const TrainFrame& fr = frames[size_t(order[order_pos++])];
+    const bool fine = opt.fine_frames && it >= fine_start;
+    const TrainFrame& fr = (fine ? *opt.fine_frames : frames)[size_t(order[order_pos++])];
     const int n = st.num_vertices();
     dec.geo.unpack(geo_params);
     dec.app.unpack(app_params);
@@ -399,10 +428,12 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
                (1.f - t * t);
       }
       if (sdim == 1)
-        y[3] = rg.log_scales[3 * size_t(i)] + rg.log_scales[3 * size_t(i) + 1] +
-               rg.log_scales[3 * size_t(i) + 2];
+        y[3] = rg.log_scales[3 * size_t(i)] * dec.scale_ratio[3 * size_t(i)] +
+               rg.log_scales[3 * size_t(i) + 1] * dec.scale_ratio[3 * size_t(i) + 1] +
+               rg.log_scales[3 * size_t(i) + 2] * dec.scale_ratio[3 * size_t(i) + 2];
       else
-        for (int k = 0; k < 3; ++k) y[3 + k] = rg.log_scales[3 * size_t(i) + k];
+        for (int k = 0; k < 3; ++k)
+          y[3 + k] = rg.log_scales[3 * size_t(i) + k] * dec.scale_ratio[3 * size_t(i) + k];
       for (int k = 0; k < 4; ++k) y[3 + sdim + k] = dquats_c[4 * size_t(i) + k];
       y[7 + sdim] = rg.opacity_logits[i];
       for (int k = 0; k < 3; ++k) dYa(k, i) = dsh[3 * size_t(i) + k];
@@ -492,6 +523,9 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       {"trainer", "kinesplat reconstruct"},
       {"iterations", opt.iterations},
       {"scale", opt.scale},
+      {"fine_from_iteration", fine_start},
+      {"filter3d", opt.filter3d},
+      {"filter3d_pixel_m", pixel_world},
       {"subdivide", opt.subdivide},
       {"laplacian", opt.laplacian == LaplacianMode::kSemantic  ? "semantic"
                     : opt.laplacian == LaplacianMode::kUniform ? "uniform"

@@ -7,6 +7,7 @@
 // Documented in docs/reconstruct.md.
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -31,6 +32,8 @@ struct PerturbOptions {
   float warp_degrees = 1.0f;  // max rotation of the warp about the image centre
 };
 
+struct TrainFrame;
+
 struct TrainOptions {
   int iterations = 2000;
   float scale = 0.5f;  // training resolution relative to the dataset's images
@@ -48,12 +51,36 @@ struct TrainOptions {
   float max_offset = 0.06f;    // metres: offset = max_offset * tanh(raw)
   float scale_factor = 0.6f;   // initial scale = scale_factor * mean template edge length
   float init_opacity = 0.95f;  // initial opacity
+  // 3D smoothing filter (as Mip-Splatting's): every Gaussian's variance gets filter3d * p^2 added,
+  // p = the world size of one training pixel at the body (median over the training frames), so
+  // no Gaussian is thinner than the training sampling allows; it stays baked into the exported
+  // scales, which keeps renders at a higher resolution than the training one free of holes.
+  // 0 = off.
+  float filter3d = 0.2f;
   uint64_t seed = 0;
   PerturbOptions perturb;
   DensityControl* density = nullptr;  // not owned; called after every step
+  // Coarse-to-fine: from iteration fine_from * iterations on, train on `fine_frames` (the same
+  // frames at a higher resolution, usually the dataset's own; not owned) instead of the frames.
+  // fine_from >= 1 or fine_frames == nullptr: the whole fit runs on the coarse frames.
+  const std::vector<TrainFrame>* fine_frames = nullptr;
+  float fine_from = 1.f;
   bool progress = true;
   int log_every = 0;  // > 0: print "it loss psnr" lines to stderr every this many iterations
 };
+
+// The 3D smoothing filter on one log-scale: returns log sqrt(exp(2 ls) + var) and writes
+// d result / d ls = exp(2 ls) / (exp(2 ls) + var) to *dls. var <= 0: identity.
+template <class T>
+T filtered_log_scale(T ls, T var, T* dls) {
+  if (!(var > T(0))) {
+    *dls = T(1);
+    return ls;
+  }
+  const T v = std::exp(T(2) * ls), vf = v + var;
+  *dls = v / vf;
+  return T(0.5) * std::log(vf);
+}
 
 // A training frame, already at training resolution (and perturbed if asked).
 struct TrainFrame {

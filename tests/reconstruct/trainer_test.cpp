@@ -98,6 +98,42 @@ TEST(Trainer, RejectsBadOptions) {
   EXPECT_THROW(train_avatar(model, ds, {}, opt), Error);
   PerturbOptions p;
   EXPECT_THROW(load_training_frames(ds, "/nonexistent", 0.f, p, 0), Error);
+  // Coarse-to-fine needs the same frames at both resolutions.
+  std::vector<TrainFrame> one(1), none;
+  one[0].image = Image(8, 8, 3, 1.f);
+  one[0].mask = Image(8, 8, 1, 0.f);
+  one[0].camera = Camera::look_at_fov({0, 0, 3.2}, {0, -0.3, 0}, 8, 8, 45.0);
+  opt.iterations = 1;
+  opt.subdivide = 0;
+  opt.progress = false;
+  opt.fine_frames = &none;
+  opt.fine_from = 0.5f;
+  EXPECT_THROW(train_avatar(model, ds, one, opt), Error);
 }
 
+}  // namespace ks
+
+namespace ks {
+namespace {
+
+TEST(Trainer, FilteredLogScaleGradientMatchesFiniteDifferences) {
+  const double var = 2.5e-5;  // (5 mm)^2
+  for (double ls : {-8.0, -6.0, -5.3, -4.0, -2.0}) {
+    double d = 0;
+    const double y = filtered_log_scale(ls, var, &d);
+    EXPECT_NEAR(y, 0.5 * std::log(std::exp(2 * ls) + var), 1e-12);
+    EXPECT_GE(y, ls);                           // never thinner than unfiltered
+    EXPECT_GE(y, 0.5 * std::log(var) - 1e-12);  // never thinner than the filter
+    const double h = 1e-6;
+    double dd;
+    const double fd =
+        (filtered_log_scale(ls + h, var, &dd) - filtered_log_scale(ls - h, var, &dd)) / (2 * h);
+    EXPECT_NEAR(d, fd, 1e-7) << "ls " << ls;
+  }
+  double d = 0;
+  EXPECT_EQ(filtered_log_scale(-3.0, 0.0, &d), -3.0);  // off
+  EXPECT_EQ(d, 1.0);
+}
+
+}  // namespace
 }  // namespace ks
