@@ -45,6 +45,9 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--fine-scale", args->fine_scale, "Resolution of the fine phase")
       ->capture_default_str();
+  sub->add_option("--filter3d", args->opt.filter3d,
+                  "3D smoothing filter variance in training pixels^2 (0 = off)")
+      ->capture_default_str();
   sub->add_option("--subdivide", args->opt.subdivide, "Loop subdivision levels of the template")
       ->capture_default_str();
   sub->add_option("--laplacian", args->laplacian, "Laplacian regulariser: semantic|uniform|none")
