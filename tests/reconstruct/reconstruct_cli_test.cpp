@@ -102,6 +102,8 @@ TEST(ReconstructCli, TrainsSavesAndEvaluates) {
   ASSERT_TRUE(fs::exists(av));
   const Avatar a = load_avatar(av);
   EXPECT_EQ(a.num_gaussians(), default_body_model().num_vertices());
+  // Coarse-to-fine by default: the last quarter (iteration 3 of 4) on the fine frames.
+  EXPECT_EQ(a.metadata.value("fine_from_iteration", -1), 3);
   const std::string mj = (dir / "m.json").string();
   r = run_cli("evaluate " + av + " " + (dir / "data").string() + " --out " + mj + " -q");
   ASSERT_EQ(r.status, 0) << r.out;
