@@ -102,7 +102,10 @@ StagedDir::StagedDir(const std::string& final_dir) : final_(final_dir) {
   if (final_.filename().empty()) final_ = final_.parent_path();
   ensure_parent(fs::absolute(final_));
   staging_ = final_;
-  staging_.replace_filename("." + final_.filename().string() + unique_suffix());
+  std::string name(".");
+  name += final_.filename().string();
+  name += unique_suffix();
+  staging_.replace_filename(name);
   std::error_code ec;
   fs::create_directories(staging_, ec);
   if (ec) throw Error("cannot create directory " + staging_.string() + ": " + ec.message());
