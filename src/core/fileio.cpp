@@ -68,8 +68,11 @@ void write_via_temp(const std::string& path, const std::function<void(const std:
   fs::path target(path);
   ensure_parent(target);
   fs::path tmp = target;
-  tmp.replace_filename("." + target.stem().string() + unique_suffix() +
-                       target.extension().string());
+  std::string name(".");
+  name += target.stem().string();
+  name += unique_suffix();
+  name += target.extension().string();
+  tmp.replace_filename(name);
   try {
     write(tmp.string());
     fs::rename(tmp, target);
