@@ -32,30 +32,26 @@ struct AnimateArgs {
   bool ply = false;
 };
 
-void parse_size(const std::string &s, int &w, int &h) {
-  if (std::sscanf(s.c_str(), "%dx%d", &w, &h) != 2 || w <= 0 || h <= 0 ||
-      w > 16384 || h > 16384)
-    throw ks::Error("--size: expected WxH with positive integers, got \"" + s +
-                    "\"");
+void parse_size(const std::string& s, int& w, int& h) {
+  if (std::sscanf(s.c_str(), "%dx%d", &w, &h) != 2 || w <= 0 || h <= 0 || w > 16384 || h > 16384)
+    throw ks::Error("--size: expected WxH with positive integers, got \"" + s + "\"");
 }
 
-void parse_rgb(const std::string &s, float rgb[3]) {
+void parse_rgb(const std::string& s, float rgb[3]) {
   if (std::sscanf(s.c_str(), "%f,%f,%f", &rgb[0], &rgb[1], &rgb[2]) != 3)
     throw ks::Error("--background: expected r,g,b in [0,1], got \"" + s + "\"");
   for (int k = 0; k < 3; ++k)
     if (!(rgb[k] >= 0.f && rgb[k] <= 1.f))
-      throw ks::Error("--background: components must lie in [0,1], got \"" + s +
-                      "\"");
+      throw ks::Error("--background: components must lie in [0,1], got \"" + s + "\"");
 }
 
-ks::Motion get_motion(const std::string &name, int frames) {
+ks::Motion get_motion(const std::string& name, int frames) {
   const std::string ext = fs::path(name).extension().string();
-  if (ext == ".npz")
-    return ks::load_amass_npz(name, frames);
+  if (ext == ".npz") return ks::load_amass_npz(name, frames);
   return ks::load_motion(name, frames);
 }
 
-std::string shell_quote(const std::string &s) {
+std::string shell_quote(const std::string& s) {
   std::string out = "'";
   for (char c : s) {
     if (c == '\'')
@@ -68,8 +64,8 @@ std::string shell_quote(const std::string &s) {
 
 // Bounding box of the posed avatar over the motion (opaque Gaussians, up to
 // ~20K per frame, up to 16 frames), grown to at least 10 cm per axis.
-void motion_bounds(const ks::Avatar &a, const ks::Motion &m,
-                   Eigen::Vector3d &lo, Eigen::Vector3d &hi) {
+void motion_bounds(const ks::Avatar& a, const ks::Motion& m, Eigen::Vector3d& lo,
+                   Eigen::Vector3d& hi) {
   lo.setConstant(1e30);
   hi.setConstant(-1e30);
   ks::Gaussians g;
@@ -78,33 +74,27 @@ void motion_bounds(const ks::Avatar &a, const ks::Motion &m,
     ks::pose_avatar(a, m.frames[f], g);
     const size_t stride = std::max<size_t>(1, g.size() / 20000);
     for (size_t i = 0; i < g.size(); i += stride) {
-      if (g.opacity_logits[i] < -2.f)
-        continue;
-      const Eigen::Vector3d p(g.means[3 * i], g.means[3 * i + 1],
-                              g.means[3 * i + 2]);
+      if (g.opacity_logits[i] < -2.f) continue;
+      const Eigen::Vector3d p(g.means[3 * i], g.means[3 * i + 1], g.means[3 * i + 2]);
       lo = lo.cwiseMin(p);
       hi = hi.cwiseMax(p);
     }
   }
-  if (lo.x() > hi.x())
-    lo = hi = Eigen::Vector3d::Zero();
-  const Eigen::Vector3d grow =
-      (Eigen::Vector3d::Constant(0.1) - (hi - lo)).cwiseMax(0.0) * 0.5;
+  if (lo.x() > hi.x()) lo = hi = Eigen::Vector3d::Zero();
+  const Eigen::Vector3d grow = (Eigen::Vector3d::Constant(0.1) - (hi - lo)).cwiseMax(0.0) * 0.5;
   lo -= grow;
   hi += grow;
 }
 
-} // namespace
+}  // namespace
 
 namespace ks::cli {
 
 // Cameras for playback: "front" (fixed, facing the body's +Z front, framing the
 // whole motion), "orbit" (circling the motion's centre once over the sequence),
 // or a camera JSON file.
-std::vector<Camera> playback_cameras(const std::string &spec,
-                                     const Eigen::Vector3d &lo,
-                                     const Eigen::Vector3d &hi, int width,
-                                     int height, int frames) {
+std::vector<Camera> playback_cameras(const std::string& spec, const Eigen::Vector3d& lo,
+                                     const Eigen::Vector3d& hi, int width, int height, int frames) {
   std::vector<Camera> cams;
   if (spec != "front" && spec != "orbit") {
     Camera c = Camera::load(spec);
@@ -121,36 +111,30 @@ std::vector<Camera> playback_cameras(const std::string &spec,
   const Eigen::Vector3d ext = hi - lo;
   const double tan_v = std::tan(0.5 * vfov * M_PI / 180.0);
   const double tan_h = tan_v * double(width) / height;
-  const double horiz =
-      std::max(ext.x(), ext.z()); // the orbit sees the widest side
+  const double horiz = std::max(ext.x(), ext.z());  // the orbit sees the widest side
   const double half_h = 0.5 * ext.y() * 1.12, half_w = 0.5 * horiz * 1.12;
   const double dist = std::max(half_h / tan_v, half_w / tan_h) + 0.5 * horiz;
   for (int f = 0; f < frames; ++f) {
-    const double th =
-        spec == "orbit" ? 2.0 * M_PI * f / std::max(frames, 1) : 0.0;
-    const Eigen::Vector3d eye =
-        centre + dist * Eigen::Vector3d(std::sin(th), 0.0, std::cos(th));
+    const double th = spec == "orbit" ? 2.0 * M_PI * f / std::max(frames, 1) : 0.0;
+    const Eigen::Vector3d eye = centre + dist * Eigen::Vector3d(std::sin(th), 0.0, std::cos(th));
     cams.push_back(Camera::look_at_fov(eye, centre, width, height, vfov));
   }
   return cams;
 }
 
-void run_animate(const AnimateArgs &args) {
+void run_animate(const AnimateArgs& args) {
   int W = 0, H = 0;
   parse_size(args.size, W, H);
   RasterSettings rs;
   parse_rgb(args.background, rs.background);
-  if (args.frames < 0)
-    throw Error("--frames must be >= 0");
+  if (args.frames < 0) throw Error("--frames must be >= 0");
   const Avatar avatar = load_avatar(args.avatar);
   const Motion motion = get_motion(args.motion, args.frames);
-  if (motion.frames.empty())
-    throw Error("motion \"" + args.motion + "\" has no frames");
+  if (motion.frames.empty()) throw Error("motion \"" + args.motion + "\" has no frames");
   const int F = int(motion.frames.size());
   Eigen::Vector3d lo, hi;
   motion_bounds(avatar, motion, lo, hi);
-  const std::vector<Camera> cams =
-      playback_cameras(args.camera, lo, hi, W, H, F);
+  const std::vector<Camera> cams = playback_cameras(args.camera, lo, hi, W, H, F);
 
   const bool mp4 = fs::path(args.out).extension() == ".mp4";
   if (mp4 && std::system("command -v ffmpeg >/dev/null 2>&1") != 0)
@@ -160,17 +144,16 @@ void run_animate(const AnimateArgs &args) {
                 "ffmpeg`, or give --out a directory to get PNG frames)");
   // Frames go to a staging directory that appears only when complete.
   const std::string frame_dir =
-      mp4 ? (fs::path(args.out).parent_path() /
-             (fs::path(args.out).stem().string() + "_frames"))
+      mp4 ? (fs::path(args.out).parent_path() / (fs::path(args.out).stem().string() + "_frames"))
                 .string()
           : args.out;
   if (!fs::path(frame_dir).parent_path().empty())
     fs::create_directories(fs::path(frame_dir).parent_path());
   StagedDir staged(frame_dir);
-  std::printf("animate: %d Gaussians, motion \"%s\" (%d frames at %.1f fps), "
-              "camera %s, %dx%d\n",
-              avatar.num_gaussians(), motion.name.c_str(), F, motion.fps,
-              args.camera.c_str(), W, H);
+  std::printf(
+      "animate: %d Gaussians, motion \"%s\" (%d frames at %.1f fps), "
+      "camera %s, %dx%d\n",
+      avatar.num_gaussians(), motion.name.c_str(), F, motion.fps, args.camera.c_str(), W, H);
   Gaussians g;
   RasterResult rr;
   Progress prog("animate", F);
@@ -179,75 +162,61 @@ void run_animate(const AnimateArgs &args) {
     const auto t0 = std::chrono::steady_clock::now();
     pose_avatar(avatar, motion.frames[f], g);
     rasterize_forward(g, cams[f], rs, rr);
-    render_s +=
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
-            .count();
+    render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     char name[32];
     std::snprintf(name, sizeof name, "%04d", f);
     write_png(staged.path(std::string(name) + ".png"), rr.color);
-    if (args.ply)
-      write_ply(staged.path(std::string(name) + ".ply"), g);
+    if (args.ply) write_ply(staged.path(std::string(name) + ".ply"), g);
     prog.update(f + 1);
   }
   prog.finish();
   if (mp4) {
-    const std::string cmd =
-        "ffmpeg -y -loglevel error -framerate " +
-        std::to_string(std::max(1, int(std::lround(motion.fps)))) + " -i " +
-        shell_quote((staged.staging() / "%04d.png").string()) +
-        " -pix_fmt yuv420p -c:v libx264 -vf " +
-        shell_quote("pad=ceil(iw/2)*2:ceil(ih/2)*2") + " ";
-    write_via_temp(args.out, [&](const std::string &tmp) {
+    const std::string cmd = "ffmpeg -y -loglevel error -framerate " +
+                            std::to_string(std::max(1, int(std::lround(motion.fps)))) + " -i " +
+                            shell_quote((staged.staging() / "%04d.png").string()) +
+                            " -pix_fmt yuv420p -c:v libx264 -vf " +
+                            shell_quote("pad=ceil(iw/2)*2:ceil(ih/2)*2") + " ";
+    write_via_temp(args.out, [&](const std::string& tmp) {
       const int rc = std::system((cmd + shell_quote(tmp)).c_str());
       if (rc != 0)
-        throw Error("ffmpeg failed (exit status " + std::to_string(rc) +
-                    ") writing " + args.out);
+        throw Error("ffmpeg failed (exit status " + std::to_string(rc) + ") writing " + args.out);
     });
     if (args.ply) {
       staged.commit();
-      std::printf("animate: wrote %s and per-frame PNG/.ply files in %s/\n",
-                  args.out.c_str(), frame_dir.c_str());
+      std::printf("animate: wrote %s and per-frame PNG/.ply files in %s/\n", args.out.c_str(),
+                  frame_dir.c_str());
     } else {
       std::printf("animate: wrote %s\n", args.out.c_str());
     }
   } else {
     staged.commit();
-    std::printf("animate: wrote %d frames%s to %s/\n", F,
-                args.ply ? " (PNG + .ply)" : " (PNG)", args.out.c_str());
+    std::printf("animate: wrote %d frames%s to %s/\n", F, args.ply ? " (PNG + .ply)" : " (PNG)",
+                args.out.c_str());
   }
-  std::printf("animate: pose + render %.1f ms per frame (%.1f fps)\n",
-              1e3 * render_s / F, F / std::max(render_s, 1e-9));
+  std::printf("animate: pose + render %.1f ms per frame (%.1f fps)\n", 1e3 * render_s / F,
+              F / std::max(render_s, 1e-9));
 }
 
-} // namespace ks::cli
+}  // namespace ks::cli
 
 namespace {
 
-ks::cli::CommandGroup group(70, [](CLI::App &app) {
+ks::cli::CommandGroup group(70, [](CLI::App& app) {
   auto args = std::make_shared<AnimateArgs>();
-  auto *sub = app.add_subcommand("animate",
-                                 "Pose an avatar along a motion and render it");
-  sub->add_option("avatar", args->avatar, "Avatar file (from `reconstruct`)")
-      ->required();
-  sub->add_option(
-         "--motion", args->motion,
-         "Built-in motion name (see `kinesplat motions`) or an AMASS .npz file")
+  auto* sub = app.add_subcommand("animate", "Pose an avatar along a motion and render it");
+  sub->add_option("avatar", args->avatar, "Avatar file (from `reconstruct`)")->required();
+  sub->add_option("--motion", args->motion,
+                  "Built-in motion name (see `kinesplat motions`) or an AMASS .npz file")
       ->capture_default_str();
-  sub->add_option("--out", args->out,
-                  "Output directory for PNG frames, or FILE.mp4")
-      ->required();
+  sub->add_option("--out", args->out, "Output directory for PNG frames, or FILE.mp4")->required();
   sub->add_option("--camera", args->camera, "front | orbit | camera JSON file")
       ->capture_default_str();
-  sub->add_option("--size", args->size, "Image size WxH")
-      ->capture_default_str();
-  sub->add_option("--frames", args->frames,
-                  "Number of frames (0: the motion's length)");
-  sub->add_flag("--ply", args->ply,
-                "Also write each frame as a standard 3DGS .ply");
-  sub->add_option("--background", args->background,
-                  "Background colour r,g,b in [0,1]")
+  sub->add_option("--size", args->size, "Image size WxH")->capture_default_str();
+  sub->add_option("--frames", args->frames, "Number of frames (0: the motion's length)");
+  sub->add_flag("--ply", args->ply, "Also write each frame as a standard 3DGS .ply");
+  sub->add_option("--background", args->background, "Background colour r,g,b in [0,1]")
       ->capture_default_str();
   sub->callback([args] { ks::cli::run_animate(*args); });
 });
 
-} // namespace
+}  // namespace

@@ -68,8 +68,11 @@ void write_via_temp(const std::string& path, const std::function<void(const std:
   fs::path target(path);
   ensure_parent(target);
   fs::path tmp = target;
-  tmp.replace_filename("." + target.stem().string() + unique_suffix() +
-                       target.extension().string());
+  std::string name(".");
+  name += target.stem().string();
+  name += unique_suffix();
+  name += target.extension().string();
+  tmp.replace_filename(name);
   try {
     write(tmp.string());
     fs::rename(tmp, target);
@@ -102,7 +105,10 @@ StagedDir::StagedDir(const std::string& final_dir) : final_(final_dir) {
   if (final_.filename().empty()) final_ = final_.parent_path();
   ensure_parent(fs::absolute(final_));
   staging_ = final_;
-  staging_.replace_filename("." + final_.filename().string() + unique_suffix());
+  std::string name(".");
+  name += final_.filename().string();
+  name += unique_suffix();
+  staging_.replace_filename(name);
   std::error_code ec;
   fs::create_directories(staging_, ec);
   if (ec) throw Error("cannot create directory " + staging_.string() + ": " + ec.message());

@@ -25,15 +25,13 @@ struct CliRun {
   std::string output;
 };
 
-CliRun run_cli(const std::string &args) {
+CliRun run_cli(const std::string& args) {
   const std::string cmd = std::string(KS_CLI_PATH) + " " + args + " 2>&1";
   CliRun r{-1, ""};
-  FILE *p = popen(cmd.c_str(), "r");
-  if (!p)
-    return r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
   std::array<char, 512> buf;
-  while (fgets(buf.data(), int(buf.size()), p))
-    r.output += buf.data();
+  while (fgets(buf.data(), int(buf.size()), p)) r.output += buf.data();
   const int st = pclose(p);
   r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
   return r;
@@ -41,37 +39,30 @@ CliRun run_cli(const std::string &args) {
 
 struct TmpDir {
   fs::path dir;
-  TmpDir(const std::string &name)
-      : dir(fs::temp_directory_path() / ("ks_cli_" + name)) {
+  TmpDir(const std::string& name) : dir(fs::temp_directory_path() / ("ks_cli_" + name)) {
     fs::remove_all(dir);
     fs::create_directories(dir);
   }
   ~TmpDir() { fs::remove_all(dir); }
-  std::string operator/(const std::string &rel) const {
-    return (dir / rel).string();
-  }
+  std::string operator/(const std::string& rel) const { return (dir / rel).string(); }
 };
 
 TEST(AnimateCli, WritesPngAndPlyFrames) {
   TmpDir t("animate_png");
   save_avatar(t / "a.ksavatar", test::tiny_avatar());
-  const CliRun r =
-      run_cli("animate " + t / "a.ksavatar" +
-              " --motion wave --frames 3 --size 24x32 --ply --out " +
-              t / "frames" + " --camera orbit --background 0,0,0");
+  const CliRun r = run_cli("animate " + t / "a.ksavatar" +
+                           " --motion wave --frames 3 --size 24x32 --ply --out " + t / "frames" +
+                           " --camera orbit --background 0,0,0");
   ASSERT_EQ(r.status, 0) << r.output;
   for (int f = 0; f < 3; ++f) {
     char name[16];
     std::snprintf(name, sizeof name, "%04d", f);
-    const Image img =
-        read_image(t / ("frames/" + std::string(name) + ".png"), 3);
+    const Image img = read_image(t / ("frames/" + std::string(name) + ".png"), 3);
     EXPECT_EQ(img.width, 24);
     EXPECT_EQ(img.height, 32);
     float sum = 0;
-    for (float v : img.data)
-      sum += v;
-    EXPECT_GT(sum, 0.f) << "frame " << f
-                        << " is empty: the camera does not see the avatar";
+    for (float v : img.data) sum += v;
+    EXPECT_GT(sum, 0.f) << "frame " << f << " is empty: the camera does not see the avatar";
     const Gaussians g = read_ply(t / ("frames/" + std::string(name) + ".ply"));
     EXPECT_EQ(g.size(), 6u);
   }
@@ -80,17 +71,15 @@ TEST(AnimateCli, WritesPngAndPlyFrames) {
 }
 
 TEST(AnimateCli, WritesMp4WhenFfmpegIsPresent) {
-  if (std::system("command -v ffmpeg >/dev/null 2>&1") != 0)
-    GTEST_SKIP() << "no ffmpeg";
+  if (std::system("command -v ffmpeg >/dev/null 2>&1") != 0) GTEST_SKIP() << "no ffmpeg";
   TmpDir t("animate_mp4");
   save_avatar(t / "a.ksavatar", test::tiny_avatar());
-  const CliRun r =
-      run_cli("animate " + t / "a.ksavatar" +
-              " --motion walk --frames 4 --size 32x32 --out " + t / "clip.mp4");
+  const CliRun r = run_cli("animate " + t / "a.ksavatar" +
+                           " --motion walk --frames 4 --size 32x32 --out " + t / "clip.mp4");
   ASSERT_EQ(r.status, 0) << r.output;
   ASSERT_TRUE(fs::exists(t / "clip.mp4"));
   EXPECT_GT(fs::file_size(t / "clip.mp4"), 100u);
-  EXPECT_FALSE(fs::exists(t / "clip_frames")); // temporary frames removed
+  EXPECT_FALSE(fs::exists(t / "clip_frames"));  // temporary frames removed
 }
 
 TEST(AnimateCli, ClearErrors) {
@@ -103,8 +92,7 @@ TEST(AnimateCli, ClearErrors) {
   r = run_cli("animate " + t / "a.ksavatar" + " --size 10 --out " + t / "x");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("--size"), std::string::npos) << r.output;
-  r = run_cli("animate " + t / "a.ksavatar" +
-              " --motion no-such-motion --out " + t / "x");
+  r = run_cli("animate " + t / "a.ksavatar" + " --motion no-such-motion --out " + t / "x");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("no-such-motion"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(t / "x"));
@@ -122,12 +110,11 @@ TEST(ExportCli, RestAndPosedPly) {
   EXPECT_EQ(rest.opacity_logits, a.gaussians.opacity_logits);
   // A pose file: global rotation of 90 degrees about Y plus a translation.
   std::vector<double> body(69, 0.0);
-  nlohmann::json j = {{"global_orient", {0.0, M_PI / 2, 0.0}},
-                      {"body_pose", body},
-                      {"transl", {0.0, 0.0, 1.0}}};
+  nlohmann::json j = {
+      {"global_orient", {0.0, M_PI / 2, 0.0}}, {"body_pose", body}, {"transl", {0.0, 0.0, 1.0}}};
   write_json_atomic(t / "pose.json", j);
-  r = run_cli("export " + t / "a.ksavatar" + " --pose " + t / "pose.json" +
-              " --out " + t / "posed.ply");
+  r = run_cli("export " + t / "a.ksavatar" + " --pose " + t / "pose.json" + " --out " +
+              t / "posed.ply");
   ASSERT_EQ(r.status, 0) << r.output;
   const Gaussians posed = read_ply(t / "posed.ply");
   ASSERT_EQ(posed.size(), 6u);
@@ -137,12 +124,12 @@ TEST(ExportCli, RestAndPosedPly) {
     EXPECT_NEAR(posed.means[3 * i + 2], -a.gaussians.means[3 * i] + 1.0, 1e-5);
   }
   write_text_atomic(t / "bad.json", "{\"body_pose\": [1, 2]}");
-  r = run_cli("export " + t / "a.ksavatar" + " --pose " + t / "bad.json" +
-              " --out " + t / "bad.ply");
+  r = run_cli("export " + t / "a.ksavatar" + " --pose " + t / "bad.json" + " --out " +
+              t / "bad.ply");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("body_pose"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(t / "bad.ply"));
 }
 
-} // namespace
-} // namespace ks
+}  // namespace
+}  // namespace ks
