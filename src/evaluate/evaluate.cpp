@@ -5,7 +5,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "avatar/pose.hpp"
 #include "core/error.hpp"
@@ -15,17 +14,6 @@
 #include "reconstruct/trainer.hpp"
 
 namespace ks {
-
-namespace {
-Image resize_area(const Image& in, int w, int h) {
-  if (in.width == w && in.height == h) return in;
-  cv::Mat src(in.height, in.width, CV_32FC(in.channels), const_cast<float*>(in.data.data()));
-  Image out(w, h, in.channels);
-  cv::Mat dst(h, w, CV_32FC(in.channels), out.data.data());
-  cv::resize(src, dst, cv::Size(w, h), 0, 0, cv::INTER_AREA);
-  return out;
-}
-}  // namespace
 
 EvalReport evaluate_avatar(const Avatar& avatar, const Dataset& ds, const std::string& dir,
                            float scale, const std::string& render_dir, bool show_progress) {

@@ -48,6 +48,15 @@ Image read_image(const std::string& path, int channels) {
   return img;
 }
 
+Image resize_area(const Image& in, int w, int h) {
+  if (in.width == w && in.height == h) return in;
+  cv::Mat src(in.height, in.width, CV_32FC(in.channels), const_cast<float*>(in.data.data()));
+  Image out(w, h, in.channels);
+  cv::Mat dst(h, w, CV_32FC(in.channels), out.data.data());
+  cv::resize(src, dst, cv::Size(w, h), 0, 0, cv::INTER_AREA);
+  return out;
+}
+
 void write_png(const std::string& path, const Image& img, int bits) {
   if (bits != 8 && bits != 16) throw Error("PNG bit depth must be 8 or 16");
   if (img.channels != 1 && img.channels != 3 && img.channels != 4)

@@ -11,6 +11,7 @@
 
 #include "core/error.hpp"
 #include "core/progress.hpp"
+#include "io/image_io.hpp"
 #include "mesh/trimesh.hpp"
 #include "raster/rasterizer.hpp"
 #include "reconstruct/adam.hpp"
@@ -24,15 +25,6 @@ namespace {
 
 constexpr float kSH0 = 0.28209479177387814f;
 using SpMat = Eigen::SparseMatrix<double, Eigen::RowMajor>;
-
-Image resize_area(const Image& in, int w, int h) {
-  if (in.width == w && in.height == h) return in;
-  cv::Mat src(in.height, in.width, CV_32FC(in.channels), const_cast<float*>(in.data.data()));
-  Image out(w, h, in.channels);
-  cv::Mat dst(h, w, CV_32FC(in.channels), out.data.data());
-  cv::resize(src, dst, cv::Size(w, h), 0, 0, cv::INTER_AREA);
-  return out;
-}
 
 // Small affine warp (rotation about the centre + translation), border = `fill`.
 Image warp(const Image& in, double angle_deg, double dx, double dy, const float* fill) {

@@ -1,6 +1,8 @@
 // Runs the built `kinesplat` binary (KS_CLI_PATH) for the body command group.
 #include <gtest/gtest.h>
 
+#include "cli_run.hpp"
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -15,30 +17,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct CliRun {
-  int status;
-  std::string out, err;
-};
-
-CliRun run_cli(const std::string& args, const std::string& tag) {
-  const fs::path dir = fs::temp_directory_path();
-  const std::string o =
-      (dir / ("ks_cli_" + tag + "_" + std::to_string(::getpid()) + ".out")).string();
-  const std::string e =
-      (dir / ("ks_cli_" + tag + "_" + std::to_string(::getpid()) + ".err")).string();
-  const std::string cmd = std::string("\"") + KS_CLI_PATH + "\" " + args + " >" + o + " 2>" + e;
-  const int rc = std::system(cmd.c_str());
-  CliRun r;
-  r.status = WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-  std::ifstream fo(o), fe(e);
-  std::stringstream so, se;
-  so << fo.rdbuf();
-  se << fe.rdbuf();
-  r.out = so.str();
-  r.err = se.str();
-  fs::remove(o);
-  fs::remove(e);
-  return r;
+using test::CliRun;
+CliRun run_cli(const std::string& args, const std::string&) {
+  return test::run_cli(args);
 }
 
 std::vector<double> read_obj_vertices(const std::string& path) {

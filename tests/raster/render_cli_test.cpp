@@ -1,7 +1,9 @@
 // Runs the built `kinesplat` binary (KS_CLI_PATH): render and bench raster.
 #include <gtest/gtest.h>
+
 #include <sys/wait.h>
 #include <unistd.h>
+#include "cli_run.hpp"
 
 #include <cstdlib>
 #include <filesystem>
@@ -17,30 +19,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct CliRun {
-  int status;
-  std::string out, err;
-};
-
-CliRun run_cli(const std::string& args) {
-  const fs::path dir = fs::temp_directory_path();
-  const std::string tag = std::to_string(::getpid());
-  const std::string o = (dir / ("ks_render_cli_" + tag + ".out")).string();
-  const std::string e = (dir / ("ks_render_cli_" + tag + ".err")).string();
-  const std::string cmd = std::string("\"") + KS_CLI_PATH + "\" " + args + " >" + o + " 2>" + e;
-  const int rc = std::system(cmd.c_str());
-  CliRun r;
-  r.status = WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-  std::ifstream fo(o), fe(e);
-  std::stringstream so, se;
-  so << fo.rdbuf();
-  se << fe.rdbuf();
-  r.out = so.str();
-  r.err = se.str();
-  fs::remove(o);
-  fs::remove(e);
-  return r;
-}
+using test::CliRun;
+using test::run_cli;
 
 struct TmpDir {
   fs::path p;

@@ -1,8 +1,10 @@
 // `kinesplat reconstruct` and `kinesplat evaluate` end to end on a tiny dataset written here:
 // 3 frames of a coloured Gaussian person rendered by the rasterizer (40 x 56).
 #include <gtest/gtest.h>
+
 #include <sys/wait.h>
 #include <unistd.h>
+#include "cli_run.hpp"
 
 #include <cstdlib>
 #include <filesystem>
@@ -24,26 +26,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct CliResult {
-  int status = -1;
-  std::string out;
-};
-
-CliResult run_cli(const std::string& args) {
-  const std::string o =
-      (fs::temp_directory_path() / ("ks_recon_cli_" + std::to_string(::getpid()) + ".txt"))
-          .string();
-  const std::string cmd = std::string("\"") + KS_CLI_PATH + "\" " + args + " >" + o + " 2>&1";
-  const int rc = std::system(cmd.c_str());
-  CliResult r;
-  r.status = WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-  std::ifstream f(o);
-  std::stringstream s;
-  s << f.rdbuf();
-  r.out = s.str();
-  fs::remove(o);
-  return r;
-}
+using test::run_cli;
 
 // Writes a 3-frame dataset rendered from a short fit recoloured by height.
 void write_tiny_dataset(const std::string& dir) {
@@ -96,9 +79,9 @@ TEST(ReconstructCli, TrainsSavesAndEvaluates) {
   fs::remove_all(dir);
   write_tiny_dataset((dir / "data").string());
   const std::string av = (dir / "a.ksavatar").string();
-  CliResult r = run_cli("reconstruct " + (dir / "data").string() + " --out " + av +
-                        " --iters 4 --subdivide 0 --scale 1 --triplane-res 16 --hidden 8 -q");
-  ASSERT_EQ(r.status, 0) << r.out;
+  test::CliRun r = run_cli("reconstruct " + (dir / "data").string() + " --out " + av +
+                           " --iters 4 --subdivide 0 --scale 1 --triplane-res 16 --hidden 8 -q");
+  ASSERT_EQ(r.status, 0) << r.output;
   ASSERT_TRUE(fs::exists(av));
   const Avatar a = load_avatar(av);
   EXPECT_EQ(a.num_gaussians(), default_body_model().num_vertices());
@@ -106,8 +89,8 @@ TEST(ReconstructCli, TrainsSavesAndEvaluates) {
   EXPECT_EQ(a.metadata.value("fine_from_iteration", -1), 3);
   const std::string mj = (dir / "m.json").string();
   r = run_cli("evaluate " + av + " " + (dir / "data").string() + " --out " + mj + " -q");
-  ASSERT_EQ(r.status, 0) << r.out;
-  EXPECT_NE(r.out.find("mean masked SSIM"), std::string::npos);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("mean masked SSIM"), std::string::npos);
   const nlohmann::json j = read_json(mj);
   EXPECT_EQ(j["frames"].size(), 3u);
   EXPECT_GT(j["mean"]["psnr"].get<double>(), 10.0);
@@ -115,11 +98,11 @@ TEST(ReconstructCli, TrainsSavesAndEvaluates) {
   // User errors: a missing dataset, an unknown Laplacian mode.
   r = run_cli("reconstruct " + (dir / "nope").string() + " --out " + av);
   EXPECT_EQ(r.status, 1);
-  EXPECT_NE(r.out.find("error:"), std::string::npos);
+  EXPECT_NE(r.output.find("error:"), std::string::npos);
   r = run_cli("reconstruct " + (dir / "data").string() + " --out " + av +
               " --laplacian cotan --iters 1");
   EXPECT_EQ(r.status, 1);
-  EXPECT_NE(r.out.find("cotan"), std::string::npos);
+  EXPECT_NE(r.output.find("cotan"), std::string::npos);
   fs::remove_all(dir);
 }
 
