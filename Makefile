@@ -29,8 +29,11 @@ test: deps build
 demo: deps build
 	./scripts/demo.sh $(BUILD_DIR)/kinesplat $(DEMO_DIR)
 
+# The rasterizer benchmark at the project's reference size (the README's figures), then the
+# Google Benchmark program.
 bench: deps build
-	./scripts/bench.sh $(BUILD_DIR)
+	$(BUILD_DIR)/kinesplat bench raster --gaussians 110000 --width 512 --height 768 --backward --frames 10
+	$(BUILD_DIR)/raster_bench
 
 format:
 	find src tests bench -name '*.cpp' -o -name '*.hpp' | xargs clang-format -i
