@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 #include "cli_run.hpp"
+#include "reconstruct/tiny_avatar.hpp"
 
 #include <cstdlib>
 #include <filesystem>
@@ -34,18 +35,12 @@ void write_tiny_dataset(const std::string& dir) {
   Dataset ds;
   ds.betas = Eigen::VectorXd::Zero(model.num_betas);
   TrainOptions opt;
-  opt.iterations = 1;
   opt.subdivide = 0;
   opt.triplane_res = 16;
   opt.triplane_channels = 4;
   opt.hidden = 8;
   opt.progress = false;
-  std::vector<TrainFrame> dummy(1);
-  dummy[0].image = Image(40, 56, 3, 1.f);
-  dummy[0].mask = Image(40, 56, 1, 0.f);
-  dummy[0].camera = Camera::look_at_fov({0, 0, 3.2}, {0, -0.3, 0}, 40, 56, 45.0);
-  dummy[0].pose.betas = ds.betas;
-  Avatar truth = train_avatar(model, ds, dummy, opt);
+  Avatar truth = test::one_step_avatar(model, ds, opt);
   for (int i = 0; i < truth.num_gaussians(); ++i) {
     const float y = truth.gaussians.means[3 * size_t(i) + 1];
     truth.gaussians.sh[3 * size_t(i)] = std::sin(4.f * y);
@@ -59,7 +54,7 @@ void write_tiny_dataset(const std::string& dir) {
     fr.mask = "images/" + std::to_string(f) + "_mask.png";
     fr.pose.global_orient = Eigen::Vector3d(0, 2.1 * f, 0);
     fr.pose.body_pose = Eigen::VectorXd::Zero(3 * model.num_body_pose_joints());
-    fr.camera = dummy[0].camera;
+    fr.camera = Camera::look_at_fov({0, 0, 3.2}, {0, -0.3, 0}, 40, 56, 45.0);
     BodyParams p = fr.pose;
     p.betas = ds.betas;
     RasterResult rr;

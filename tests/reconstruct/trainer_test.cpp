@@ -11,6 +11,7 @@
 #include "core/error.hpp"
 #include "evaluate/metrics.hpp"
 #include "raster/rasterizer.hpp"
+#include "reconstruct/tiny_avatar.hpp"
 
 namespace ks {
 
@@ -52,14 +53,7 @@ TEST(Trainer, FitsTinyRenderedPerson) {
   opt.hidden = 32;
   opt.progress = false;
   // The "truth": a short fit's own structure with colours painted by height.
-  TrainOptions init = opt;
-  init.iterations = 1;
-  std::vector<TrainFrame> dummy(1);
-  dummy[0].image = Image(40, 56, 3, 1.f);
-  dummy[0].mask = Image(40, 56, 1, 0.f);
-  dummy[0].camera = Camera::look_at_fov({0, 0, 3.2}, {0, -0.3, 0}, 40, 56, 45.0);
-  dummy[0].pose.betas = ds.betas;
-  Avatar truth = train_avatar(model, ds, dummy, init);
+  Avatar truth = test::one_step_avatar(model, ds, opt);
   for (int i = 0; i < truth.num_gaussians(); ++i) {
     const float y = truth.gaussians.means[3 * size_t(i) + 1];
     truth.gaussians.sh[3 * size_t(i)] = 1.2f * std::sin(4.f * y);
