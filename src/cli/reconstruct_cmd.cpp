@@ -72,6 +72,9 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   sub->add_option("--lr-triplane", args->opt.lr_triplane, "Triplane learning rate")
       ->capture_default_str();
   sub->add_option("--lr-mlp", args->opt.lr_mlp, "MLP learning rate")->capture_default_str();
+  sub->add_option("--lr-vertex-color", args->opt.lr_vertex_color,
+                  "Learning rate of a per-Gaussian colour residual on top of the decoder (0 = off)")
+      ->capture_default_str();
   sub->add_option("--triplane-res", args->opt.triplane_res, "Triplane resolution")
       ->capture_default_str();
   sub->add_option("--hidden", args->opt.hidden, "Hidden width of the decoder MLPs")

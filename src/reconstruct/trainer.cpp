@@ -61,6 +61,7 @@ struct Fit {
   SpMat S;  // N x V_model: template vertex <- body model vertices (pose correctives)
   std::vector<float> xs, ys, zs;
   Laplacian lap;
+  std::vector<float> vcolor;  // 3N per-vertex SH0 residual (opt->lr_vertex_color > 0)
   bool resized = false;
 
   void rebuild() {
@@ -81,6 +82,13 @@ struct Fit {
   static void on_resize(void* ctx, const SpMat& stencil) {
     Fit* f = static_cast<Fit*>(ctx);
     f->S = SpMat(stencil * f->S);
+    if (!f->vcolor.empty()) {
+      Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> old(
+          f->vcolor.data(), stencil.cols(), 3);
+      const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor> now =
+          (stencil * old.cast<double>()).cast<float>();
+      f->vcolor.assign(now.data(), now.data() + now.size());
+    }
     f->rebuild();
     f->resized = true;
   }
@@ -131,7 +139,9 @@ struct Decoder {
       for (int k = 1; k < 4; ++k) g.quats[4 * size_t(i) + k] = y[3 + sdim + k];
       g.opacity_logits[i] = init_opacity_logit + y[7 + sdim];
       const float* a = Ya.data() + size_t(i) * 3;
-      for (int k = 0; k < 3; ++k) g.sh[3 * size_t(i) + k] = sh_init[k] + a[k];
+      for (int k = 0; k < 3; ++k)
+        g.sh[3 * size_t(i) + k] =
+            sh_init[k] + a[k] + (fit.vcolor.empty() ? 0.f : fit.vcolor[3 * size_t(i) + k]);
     }
   }
 };
@@ -312,6 +322,11 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
   adam.add_group("triplane", &dec.tp.planes, opt.lr_triplane);
   adam.add_group("geometry_mlp", &geo_params, opt.lr_mlp);
   adam.add_group("appearance_mlp", &app_params, opt.lr_mlp);
+  int vcolor_group = -1;
+  if (opt.lr_vertex_color > 0) {
+    fit.vcolor.assign(3 * size_t(n0), 0.f);
+    vcolor_group = adam.add_group("vertex_color", &fit.vcolor, opt.lr_vertex_color);
+  }
 
   // Buffers reused across iterations.
   Gaussians canon, posed;
@@ -440,7 +455,10 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
                       dplanes.data());
     ggeo.pack(geo_grad);
     gapp.pack(app_grad);
-    adam.step({&dplanes, &geo_grad, &app_grad});
+    if (vcolor_group >= 0)
+      adam.step({&dplanes, &geo_grad, &app_grad, &dsh});
+    else
+      adam.step({&dplanes, &geo_grad, &app_grad});
 
     // Density-control statistics and hook.
     for (int i = 0; i < n; ++i) {
@@ -454,6 +472,13 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       st.iteration = it;
       st.canonical = canon;
       opt.density->step(it, st);
+      if (fit.resized && vcolor_group >= 0) {
+        // New vertex set: the residuals were carried by the stencil, the moments restart.
+        AdamGroup& g = adam.group(vcolor_group);
+        g.m.assign(fit.vcolor.size(), 0.f);
+        g.v.assign(fit.vcolor.size(), 0.f);
+      }
+      fit.resized = false;
     }
 
     const double psnr = 10.0 * std::log10(1.0 / std::max(mse, 1e-12));

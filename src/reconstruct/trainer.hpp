@@ -49,6 +49,10 @@ struct TrainOptions {
   int triplane_res = 128, triplane_channels = 32, hidden = 64;
   bool isotropic = true;       // one scale per Gaussian (SIAvatar) instead of three
   float max_offset = 0.06f;    // metres: offset = max_offset * tanh(raw)
+  // Per-vertex colour residual: a free SH0 value per Gaussian added to the appearance decoder's
+  // output (texture detail finer than the triplane's cells). Carried through density control by
+  // the stencil. lr in SH units (colour = 0.282 x SH + 0.5). 0 = off.
+  float lr_vertex_color = 0.f;
   float scale_factor = 0.6f;   // initial scale = scale_factor * mean template edge length
   float init_opacity = 0.95f;  // initial opacity
   // 3D smoothing filter (as Mip-Splatting's): every Gaussian's variance gets filter3d * p^2 added,
