@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <type_traits>
+
+#include "reconstruct/mlp_kernels.hpp"
 
 namespace ks {
 
@@ -83,21 +86,177 @@ namespace {
 // inside (it does not nest its own threads in a parallel region). Per-block weight gradients are
 // summed in block order, so results do not depend on the thread count.
 constexpr Eigen::Index kBlock = 2048;
+// The AVX2 path walks a block in sub-blocks of this many points through all layers, so that a
+// sub-block's activations and deltas stay in L1/L2 (a multiple of the kernels' 6 / 12 points).
+constexpr Eigen::Index kSub = 48;
+
+namespace mk = mlp_kernels;
+
+// Weights with rows padded to a multiple of 8 (zero rows), W[l] as stored (out x in) or transposed
+// (in x out), and padded biases: the kernels' operand layout. Re-packed on every call (tens of KB).
+struct Packed {
+  std::vector<float> data;
+  std::vector<size_t> w, b;  // per-layer offsets into data
+  void pack(const MlpT<float>& m, bool transposed) {
+    const size_t L = m.W.size();
+    w.resize(L);
+    b.resize(L);
+    size_t total = 0;
+    for (size_t l = 0; l < L; ++l) {
+      const int rows = int(transposed ? m.W[l].cols() : m.W[l].rows());
+      const int cols = int(transposed ? m.W[l].rows() : m.W[l].cols());
+      w[l] = total;
+      total += size_t(mk::pad8(rows)) * size_t(cols);
+      b[l] = total;
+      total += size_t(mk::pad8(rows));
+    }
+    data.assign(total, 0.f);
+    for (size_t l = 0; l < L; ++l) {
+      const auto& W = m.W[l];
+      const int out = int(W.rows()), in = int(W.cols());
+      if (!transposed) {
+        const size_t ld = size_t(mk::pad8(out));
+        for (int j = 0; j < in; ++j)
+          for (int i = 0; i < out; ++i) data[w[l] + size_t(j) * ld + size_t(i)] = W(i, j);
+        for (int i = 0; i < out; ++i) data[b[l] + size_t(i)] = m.b[l](i);
+      } else {
+        const size_t ld = size_t(mk::pad8(in));
+        for (int i = 0; i < out; ++i)
+          for (int j = 0; j < in; ++j) data[w[l] + size_t(i) * ld + size_t(j)] = W(i, j);
+      }
+    }
+  }
+};
+
+void forward_avx2(const MlpT<float>& m, const Eigen::Ref<const MlpT<float>::Mat>& X,
+                  MlpCacheT<float>& cache, MlpT<float>::Mat& Y) {
+  const size_t L = m.W.size();
+  const Eigen::Index n = X.cols();
+  cache.act.resize(L);
+  cache.act[0].resize(X.rows(), n);
+  for (size_t l = 1; l < L; ++l) cache.act[l].resize(m.W[l - 1].rows(), n);
+  Y.resize(m.W[L - 1].rows(), n);
+  // Caller-thread scratch, reused across calls; the OpenMP workers use it through this reference
+  // (naming the thread_local inside the parallel region would give each worker its own copy).
+  static thread_local Packed packed;
+  Packed& pk = packed;
+  pk.pack(m, false);
+  const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
+#pragma omp parallel for schedule(static) if (blocks > 1)
+  for (Eigen::Index bi = 0; bi < blocks; ++bi) {
+    const Eigen::Index c0 = bi * kBlock, c1 = std::min(c0 + kBlock, n);
+    for (Eigen::Index s0 = c0; s0 < c1; s0 += kSub) {
+      const Eigen::Index len = std::min(kSub, c1 - s0);
+      cache.act[0].middleCols(s0, len) = X.middleCols(s0, len);
+      for (size_t l = 0; l < L; ++l) {
+        const int in = int(m.W[l].cols()), out = int(m.W[l].rows());
+        const bool last = l + 1 == L;
+        float* dst = last ? Y.data() + s0 * out : cache.act[l + 1].data() + s0 * out;
+        mk::gemm_cols_avx2(pk.data.data() + pk.w[l], out, in, cache.act[l].data() + s0 * in, in,
+                           int(len), dst, out, last ? mk::Epilogue::kBias : mk::Epilogue::kBiasRelu,
+                           pk.data.data() + pk.b[l], nullptr, 0);
+      }
+    }
+  }
+}
+
+void backward_avx2(const MlpT<float>& m, const MlpCacheT<float>& cache,
+                   const Eigen::Ref<const MlpT<float>::Mat>& dY, MlpGradsT<float>& g,
+                   MlpT<float>::Mat* dX) {
+  const int L = int(m.W.size());
+  if (g.W.size() != m.W.size()) g.zero_like(m);
+  const Eigen::Index n = dY.cols();
+  if (dX) dX->resize(m.W[0].cols(), n);
+  // Caller-thread scratch (see forward_avx2): transposed weights for din = W^T delta.
+  static thread_local Packed packed;
+  Packed& pk = packed;
+  pk.pack(m, true);
+  // Per-block gradient partials, rows padded: layer l's dW at gw[l], db at gb[l].
+  std::vector<size_t> gw(static_cast<size_t>(L)), gbo(static_cast<size_t>(L));
+  size_t per_block = 0;
+  int maxdim = 0;
+  for (int l = 0; l < L; ++l) {
+    const int out = int(m.W[size_t(l)].rows()), in = int(m.W[size_t(l)].cols());
+    gw[size_t(l)] = per_block;
+    per_block += size_t(mk::pad8(out)) * size_t(in);
+    gbo[size_t(l)] = per_block;
+    per_block += size_t(mk::pad8(out));
+    maxdim = std::max(maxdim, in);
+  }
+  const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
+  static thread_local std::vector<float> partials;
+  std::vector<float>& part = partials;
+  part.resize(size_t(blocks) * per_block);
+  const Eigen::Index ldy = dY.outerStride();
+#pragma omp parallel for schedule(static) if (blocks > 1)
+  for (Eigen::Index bi = 0; bi < blocks; ++bi) {
+    float* pb = part.data() + size_t(bi) * per_block;
+    std::fill(pb, pb + per_block, 0.f);
+    static thread_local std::vector<float> scratch;
+    scratch.resize(2 * size_t(kSub) * size_t(maxdim));
+    const Eigen::Index c0 = bi * kBlock, c1 = std::min(c0 + kBlock, n);
+    for (Eigen::Index s0 = c0; s0 < c1; s0 += kSub) {
+      const int len = int(std::min(kSub, c1 - s0));
+      // delta = dL/d(pre-activation output of layer l), leading dim ld.
+      const float* delta = dY.data() + s0 * ldy;
+      Eigen::Index ld = ldy;
+      for (int l = L - 1; l >= 0; --l) {
+        const int in = int(m.W[size_t(l)].cols()), out = int(m.W[size_t(l)].rows());
+        const float* act = cache.act[size_t(l)].data() + s0 * in;
+        mk::outer_acc_avx2(delta, ld, out, act, in, in, len, pb + gw[size_t(l)],
+                           pb + gbo[size_t(l)]);
+        if (l == 0 && !dX) break;
+        float* dst = l > 0 ? scratch.data() + size_t(l % 2) * size_t(kSub) * size_t(maxdim)
+                           : dX->data() + s0 * in;
+        // l > 0: ReLU backward, the gradient passes where the layer's output act > 0.
+        mk::gemm_cols_avx2(pk.data.data() + pk.w[size_t(l)], in, out, delta, ld, len, dst, in,
+                           l > 0 ? mk::Epilogue::kMask : mk::Epilogue::kNone, nullptr,
+                           l > 0 ? act : nullptr, in);
+        delta = dst;
+        ld = in;
+      }
+    }
+  }
+  // Sum the partials in block order (per element, independent of the thread count).
+  for (int l = 0; l < L; ++l) {
+    auto& GW = g.W[size_t(l)];
+    auto& GB = g.b[size_t(l)];
+    const int out = int(GW.rows()), in = int(GW.cols());
+    const size_t ldg = size_t(mk::pad8(out));
+#pragma omp parallel for schedule(static) if (size_t(blocks) * size_t(out) * size_t(in) > 100000)
+    for (int j = 0; j <= in; ++j) {  // j == in: the bias
+      float* dst = j < in ? GW.data() + size_t(j) * size_t(out) : GB.data();
+      const size_t off = j < in ? gw[size_t(l)] + size_t(j) * ldg : gbo[size_t(l)];
+      for (Eigen::Index bi = 0; bi < blocks; ++bi) {
+        const float* src = part.data() + size_t(bi) * per_block + off;
+        for (int i = 0; i < out; ++i) dst[i] += src[i];
+      }
+    }
+  }
+}
+
 }  // namespace
 
 template <typename T>
 void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>& X,
                  MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y) {
+  if constexpr (std::is_same_v<T, float>) {
+    if (mk::use_avx2()) {
+      forward_avx2(m, X, cache, Y);
+      return;
+    }
+  }
   const size_t L = m.W.size();
   const Eigen::Index n = X.cols();
   cache.act.resize(L);
-  cache.act[0] = X;
+  cache.act[0].resize(X.rows(), n);
   for (size_t l = 1; l < L; ++l) cache.act[l].resize(m.W[l - 1].rows(), n);
   Y.resize(m.W[L - 1].rows(), n);
   const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (Eigen::Index bi = 0; bi < blocks; ++bi) {
     const Eigen::Index c0 = bi * kBlock, len = std::min(kBlock, n - c0);
+    cache.act[0].middleCols(c0, len) = X.middleCols(c0, len);
     for (size_t l = 0; l < L; ++l) {
       auto in = cache.act[l].middleCols(c0, len);
       if (l + 1 < L) {
@@ -118,6 +277,12 @@ template <typename T>
 void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
                   const Eigen::Ref<const typename MlpT<T>::Mat>& dY, MlpGradsT<T>& g,
                   typename MlpT<T>::Mat* dX) {
+  if constexpr (std::is_same_v<T, float>) {
+    if (mk::use_avx2()) {
+      backward_avx2(m, cache, dY, g, dX);
+      return;
+    }
+  }
   using Mat = typename MlpT<T>::Mat;
   using Vec = typename MlpT<T>::Vec;
   const int L = int(m.W.size());

@@ -1,0 +1,141 @@
+// The AVX2+FMA decoder kernels against the Eigen path (float), on the trainer's shapes and odd
+// ones (partial vectors, tail points, 1-wide outputs).
+#include <gtest/gtest.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "reconstruct/mlp.hpp"
+#include "reconstruct/mlp_kernels.hpp"
+
+namespace ks {
+namespace {
+
+namespace mk = mlp_kernels;
+
+struct PathGuard {
+  explicit PathGuard(mk::Path p) { mk::set_path(p); }
+  ~PathGuard() { mk::set_path(mk::Path::kAuto); }
+};
+
+struct Result {
+  Mlp::Mat Y, dX;
+  MlpGrads g;
+};
+
+Result run(const Mlp& m, const Mlp::Mat& X, const Mlp::Mat& dY, mk::Path path, bool with_dx) {
+  PathGuard guard(path);
+  Result r;
+  MlpCache cache;
+  mlp_forward(m, X, cache, r.Y);
+  r.g.zero_like(m);
+  mlp_backward(m, cache, dY, r.g, with_dx ? &r.dX : nullptr);
+  return r;
+}
+
+// max |a - b| relative to max |b| (the sums have mixed signs: element-wise relative error is
+// meaningless where a sum nearly cancels).
+double rel_diff(const Mlp::Mat& a, const Mlp::Mat& b) {
+  EXPECT_EQ(a.rows(), b.rows());
+  EXPECT_EQ(a.cols(), b.cols());
+  if (a.rows() != b.rows() || a.cols() != b.cols()) return 1e30;
+  const double scale = std::max(double(b.cwiseAbs().maxCoeff()), 1e-30);
+  return double((a - b).cwiseAbs().maxCoeff()) / scale;
+}
+
+void compare(const std::vector<int>& dims, int n, uint64_t seed) {
+  SCOPED_TRACE(::testing::Message() << "dims in=" << dims.front() << " hidden=" << dims[1]
+                                    << " out=" << dims.back() << " n=" << n);
+  Mlp m;
+  m.init(dims, seed, 0.5f);
+  std::mt19937_64 rng(seed + 1);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  for (auto& b : m.b)
+    for (int i = 0; i < b.size(); ++i) b(i) = 0.1f * u(rng);
+  Mlp::Mat X(dims.front(), n), dY(dims.back(), n);
+  for (int i = 0; i < X.size(); ++i) X.data()[i] = u(rng);
+  for (int i = 0; i < dY.size(); ++i) dY.data()[i] = u(rng);
+  const Result ref = run(m, X, dY, mk::Path::kEigen, true);
+  const Result got = run(m, X, dY, mk::Path::kAvx2, true);
+  const double tol = 1e-5;
+  EXPECT_LT(rel_diff(got.Y, ref.Y), tol);
+  EXPECT_LT(rel_diff(got.dX, ref.dX), tol);
+  for (size_t l = 0; l < m.W.size(); ++l) {
+    SCOPED_TRACE(::testing::Message() << "layer " << l);
+    EXPECT_LT(rel_diff(got.g.W[l], ref.g.W[l]), tol);
+    EXPECT_LT(rel_diff(got.g.b[l], ref.g.b[l]), tol);
+  }
+  // Without dX the weight gradients are the same.
+  const Result nodx = run(m, X, dY, mk::Path::kAvx2, false);
+  for (size_t l = 0; l < m.W.size(); ++l) {
+    EXPECT_EQ(nodx.g.W[l], got.g.W[l]);
+    EXPECT_EQ(nodx.g.b[l], got.g.b[l]);
+  }
+}
+
+#define SKIP_WITHOUT_AVX2() \
+  if (!mk::cpu_has_avx2_fma()) GTEST_SKIP() << "CPU has no AVX2/FMA"
+
+TEST(MlpKernels, TrainerShapesMatchEigen) {
+  SKIP_WITHOUT_AVX2();
+  for (int n : {1, 7, 2049, 5000}) {
+    compare({96, 64, 64, 9}, n, 11);
+    compare({96, 64, 64, 3}, n, 12);
+  }
+}
+
+TEST(MlpKernels, OddShapesMatchEigen) {
+  SKIP_WITHOUT_AVX2();
+  for (int n : {1, 7, 2049}) {
+    compare({5, 7, 7, 1}, n, 21);
+    compare({5, 64, 3}, n, 22);
+    compare({96, 7, 9}, n, 23);
+    compare({5, 7, 64, 64, 9}, n, 24);
+    compare({17, 24, 1}, n, 25);
+  }
+}
+
+// Gradients accumulate into g (as the Eigen path does) and do not depend on the thread count.
+TEST(MlpKernels, AccumulatesAndIsThreadCountIndependent) {
+  SKIP_WITHOUT_AVX2();
+  PathGuard guard(mk::Path::kAvx2);
+  Mlp m;
+  m.init({96, 64, 64, 9}, 3, 0.5f);
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  const int n = 5000;
+  Mlp::Mat X(96, n), dY(9, n);
+  for (int i = 0; i < X.size(); ++i) X.data()[i] = u(rng);
+  for (int i = 0; i < dY.size(); ++i) dY.data()[i] = u(rng);
+  MlpCache cache;
+  Mlp::Mat Y, dX;
+  mlp_forward(m, X, cache, Y);
+  MlpGrads g1, g2;
+  g1.zero_like(m);
+  mlp_backward(m, cache, dY, g1, &dX);
+  g2 = g1;
+  mlp_backward(m, cache, dY, g2, &dX);
+  for (size_t l = 0; l < m.W.size(); ++l) EXPECT_LT(rel_diff(g2.W[l], Mlp::Mat(2 * g1.W[l])), 1e-6);
+#ifdef _OPENMP
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  MlpGrads g3;
+  g3.zero_like(m);
+  Mlp::Mat dX1;
+  mlp_backward(m, cache, dY, g3, &dX1);
+  omp_set_num_threads(threads);
+  for (size_t l = 0; l < m.W.size(); ++l) {
+    EXPECT_EQ(g3.W[l], g1.W[l]);
+    EXPECT_EQ(g3.b[l], g1.b[l]);
+  }
+  EXPECT_EQ(dX1, dX);
+#endif
+}
+
+}  // namespace
+}  // namespace ks
