@@ -47,8 +47,8 @@ struct TrainOptions {
   float lr_triplane = 2e-2f, lr_mlp = 2e-3f, lr_final_fraction = 0.05f;
   // Networks.
   int triplane_res = 128, triplane_channels = 32, hidden = 64;
-  bool isotropic = true;       // one scale per Gaussian (SIAvatar) instead of three
-  float max_offset = 0.06f;    // metres: offset = max_offset * tanh(raw)
+  bool isotropic = true;     // one scale per Gaussian (SIAvatar) instead of three
+  float max_offset = 0.06f;  // metres: offset = max_offset * tanh(raw)
   // Per-vertex colour residual: a free SH0 value per Gaussian added to the appearance decoder's
   // output (texture detail finer than the triplane's cells). Carried through density control by
   // the stencil. lr in SH units (colour = 0.282 x SH + 0.5). 0 = off.
