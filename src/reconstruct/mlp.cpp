@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <new>
 #include <random>
 #include <type_traits>
 
@@ -147,7 +149,13 @@ void forward_avx2(const MlpT<float>& m, const Eigen::Ref<const MlpT<float>::Mat>
     const Eigen::Index c0 = bi * kBlock, c1 = std::min(c0 + kBlock, n);
     for (Eigen::Index s0 = c0; s0 < c1; s0 += kSub) {
       const Eigen::Index len = std::min(kSub, c1 - s0);
-      cache.act[0].middleCols(s0, len) = X.middleCols(s0, len);
+      // The input is kept for the backward pass; copied here, a sub-block at a time, so the
+      // first layer reads it from L1.
+      if (X.outerStride() == X.rows())
+        std::memcpy(cache.act[0].data() + s0 * X.rows(), X.data() + s0 * X.rows(),
+                    sizeof(float) * size_t(len) * size_t(X.rows()));
+      else
+        cache.act[0].middleCols(s0, len) = X.middleCols(s0, len);
       for (size_t l = 0; l < L; ++l) {
         const int in = int(m.W[l].cols()), out = int(m.W[l].rows());
         const bool last = l + 1 == L;
@@ -262,8 +270,7 @@ void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>
       if (l + 1 < L) {
         auto out = cache.act[l + 1].middleCols(c0, len);
         out.noalias() = m.W[l] * in;
-        out.colwise() += m.b[l];
-        out = out.cwiseMax(T(0));
+        out = (out.colwise() + m.b[l]).cwiseMax(T(0));
       } else {
         auto out = Y.middleCols(c0, len);
         out.noalias() = m.W[l] * in;
@@ -285,39 +292,69 @@ void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
   }
   using Mat = typename MlpT<T>::Mat;
   using Vec = typename MlpT<T>::Vec;
+  using StridedMap = Eigen::Map<const Mat, 0, Eigen::OuterStride<>>;
   const int L = int(m.W.size());
   if (g.W.size() != m.W.size()) g.zero_like(m);
   const Eigen::Index n = dY.cols();
   if (dX) dX->resize(m.W[0].cols(), n);
   const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
-  std::vector<std::vector<Mat>> gW;
-  gW.resize(size_t(blocks), std::vector<Mat>(size_t(L)));
-  std::vector<std::vector<Vec>> gb;
-  gb.resize(size_t(blocks), std::vector<Vec>(size_t(L)));
+  // Per-block gradient partials in one flat buffer reused across calls (caller thread; the
+  // workers use it through the reference): layer l's dW (out x in) at ow[l], db at ob[l].
+  std::vector<size_t> ow(static_cast<size_t>(L)), ob(static_cast<size_t>(L));
+  size_t per_block = 0;
+  Eigen::Index maxdim = 0;
+  for (int l = 0; l < L; ++l) {
+    ow[size_t(l)] = per_block;
+    per_block += size_t(m.W[size_t(l)].size());
+    ob[size_t(l)] = per_block;
+    per_block += size_t(m.W[size_t(l)].rows());
+    maxdim = std::max(maxdim, m.W[size_t(l)].cols());
+  }
+  static thread_local std::vector<T> partials;
+  std::vector<T>& part = partials;
+  part.resize(size_t(blocks) * per_block);
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (Eigen::Index bi = 0; bi < blocks; ++bi) {
     const Eigen::Index c0 = bi * kBlock, len = std::min(kBlock, n - c0);
+    T* pb = part.data() + size_t(bi) * per_block;
+    // Two delta buffers per worker thread, reused across blocks and calls.
+    static thread_local std::vector<T> scratch;
+    scratch.resize(2 * size_t(maxdim) * size_t(kBlock));
+    T* bufs[2] = {scratch.data(), scratch.data() + size_t(maxdim) * size_t(kBlock)};
     // delta = dL/d(pre-activation output of layer l)
-    Mat delta = dY.middleCols(c0, len), din;
+    StridedMap delta(dY.data() + c0 * dY.outerStride(), dY.rows(), len,
+                     Eigen::OuterStride<>(dY.outerStride()));
     for (int l = L - 1; l >= 0; --l) {
+      const auto& W = m.W[size_t(l)];
       const auto in = cache.act[size_t(l)].middleCols(c0, len);
-      gW[size_t(bi)][size_t(l)].noalias() = delta * in.transpose();
-      gb[size_t(bi)][size_t(l)] = delta.rowwise().sum();
-      if (l == 0 && !dX) break;
-      din.noalias() = m.W[size_t(l)].transpose() * delta;
-      if (l > 0) {
-        // ReLU: in = max(pre, 0); the gradient passes where in > 0.
-        delta = (in.array() > T(0)).select(din, T(0));
-      } else {
-        dX->middleCols(c0, len) = din;
+      Eigen::Map<Mat>(pb + ow[size_t(l)], W.rows(), W.cols()).noalias() = delta * in.transpose();
+      Eigen::Map<Vec> gb(pb + ob[size_t(l)], W.rows());
+      gb.setZero();
+      for (Eigen::Index p = 0; p < len; ++p) gb += delta.col(p);  // row sums, points in order
+      if (l == 0) {
+        if (dX) dX->middleCols(c0, len).noalias() = W.transpose() * delta;
+        break;
       }
+      T* dst = bufs[l % 2];
+      Eigen::Map<Mat> din(dst, W.cols(), len);
+      din.noalias() = W.transpose() * delta;
+      // ReLU: in = max(pre, 0); the gradient passes where in > 0 (in is contiguous).
+      const T* a = in.data();
+      const size_t cnt = size_t(din.size());
+      for (size_t i = 0; i < cnt; ++i) dst[i] = a[i] > T(0) ? dst[i] : T(0);
+      new (&delta) StridedMap(dst, W.cols(), len, Eigen::OuterStride<>(W.cols()));
     }
   }
-  for (Eigen::Index bi = 0; bi < blocks; ++bi)
-    for (int l = 0; l < L; ++l) {
-      g.W[size_t(l)] += gW[size_t(bi)][size_t(l)];
-      g.b[size_t(l)] += gb[size_t(bi)][size_t(l)];
+  // Sum the partials in block order (per element, independent of the thread count).
+  for (int l = 0; l < L; ++l) {
+    auto& GW = g.W[size_t(l)];
+    auto& GB = g.b[size_t(l)];
+    for (Eigen::Index bi = 0; bi < blocks; ++bi) {
+      const T* pb = part.data() + size_t(bi) * per_block;
+      GW += Eigen::Map<const Mat>(pb + ow[size_t(l)], GW.rows(), GW.cols());
+      GB += Eigen::Map<const Vec>(pb + ob[size_t(l)], GB.size());
     }
+  }
 }
 
 template struct MlpT<float>;
