@@ -179,14 +179,20 @@ void backward_avx2(const MlpT<float>& m, const MlpCacheT<float>& cache,
   static thread_local Packed packed;
   Packed& pk = packed;
   pk.pack(m, true);
-  // Per-block gradient partials, rows padded: layer l's dW at gw[l], db at gb[l].
+  // Per-block gradient partials, rows padded: layer l's dW at gw[l], db at gb[l]. A layer whose
+  // output count pads badly (9 or 3 outputs from 64 inputs) accumulates dW^T = in delta^T
+  // instead (vectors along the inputs; pad8(in) x out, trans[l]).
   std::vector<size_t> gw(static_cast<size_t>(L)), gbo(static_cast<size_t>(L));
+  std::vector<char> trans(static_cast<size_t>(L));
   size_t per_block = 0;
   int maxdim = 0;
   for (int l = 0; l < L; ++l) {
     const int out = int(m.W[size_t(l)].rows()), in = int(m.W[size_t(l)].cols());
+    const size_t normal = size_t(mk::pad8(out)) * size_t(in);
+    const size_t transposed = size_t(mk::pad8(in)) * size_t(out);
+    trans[size_t(l)] = transposed < normal;
     gw[size_t(l)] = per_block;
-    per_block += size_t(mk::pad8(out)) * size_t(in);
+    per_block += std::min(normal, transposed);
     gbo[size_t(l)] = per_block;
     per_block += size_t(mk::pad8(out));
     maxdim = std::max(maxdim, in);
@@ -211,8 +217,13 @@ void backward_avx2(const MlpT<float>& m, const MlpCacheT<float>& cache,
       for (int l = L - 1; l >= 0; --l) {
         const int in = int(m.W[size_t(l)].cols()), out = int(m.W[size_t(l)].rows());
         const float* act = cache.act[size_t(l)].data() + s0 * in;
-        mk::outer_acc_avx2(delta, ld, out, act, in, in, len, pb + gw[size_t(l)],
-                           pb + gbo[size_t(l)]);
+        if (trans[size_t(l)]) {
+          mk::outer_acc_avx2(act, in, in, delta, ld, out, len, pb + gw[size_t(l)], nullptr);
+          mk::rowsum_acc_avx2(delta, ld, out, len, pb + gbo[size_t(l)]);
+        } else {
+          mk::outer_acc_avx2(delta, ld, out, act, in, in, len, pb + gw[size_t(l)],
+                             pb + gbo[size_t(l)]);
+        }
         if (l == 0 && !dX) break;
         float* dst = l > 0 ? scratch.data() + size_t(l % 2) * size_t(kSub) * size_t(maxdim)
                            : dX->data() + s0 * in;
@@ -230,14 +241,17 @@ void backward_avx2(const MlpT<float>& m, const MlpCacheT<float>& cache,
     auto& GW = g.W[size_t(l)];
     auto& GB = g.b[size_t(l)];
     const int out = int(GW.rows()), in = int(GW.cols());
-    const size_t ldg = size_t(mk::pad8(out));
+    const bool tr = trans[size_t(l)] != 0;
+    // Element (i, j) of this layer's partial: dW at i * si + j * sj, db at gbo + i.
+    const size_t si = tr ? size_t(mk::pad8(in)) : 1, sj = tr ? 1 : size_t(mk::pad8(out));
 #pragma omp parallel for schedule(static) if (size_t(blocks) * size_t(out) * size_t(in) > 100000)
     for (int j = 0; j <= in; ++j) {  // j == in: the bias
       float* dst = j < in ? GW.data() + size_t(j) * size_t(out) : GB.data();
-      const size_t off = j < in ? gw[size_t(l)] + size_t(j) * ldg : gbo[size_t(l)];
+      const size_t off = j < in ? gw[size_t(l)] + size_t(j) * sj : gbo[size_t(l)];
+      const size_t step = j < in ? si : 1;
       for (Eigen::Index bi = 0; bi < blocks; ++bi) {
         const float* src = part.data() + size_t(bi) * per_block + off;
-        for (int i = 0; i < out; ++i) dst[i] += src[i];
+        for (int i = 0; i < out; ++i) dst[i] += src[size_t(i) * step];
       }
     }
   }

@@ -180,6 +180,7 @@ KS_AVX2_INLINE void outer_tile(const float* D, ptrdiff_t ldd, int r0, int rows, 
   const __m256i mask = tail_mask(TAIL ? rows - (r0 + 8 * (R - 1)) : 8);
   const float* d = D + r0;
   const float* x = X + c0;
+#pragma GCC unroll 2
   for (int p = 0; p < n; ++p, d += ldd, x += ldx) {
     __m256 dv[R];
 #pragma GCC unroll 4
@@ -220,6 +221,22 @@ KS_AVX2_INLINE void outer_chunk(const float* D, ptrdiff_t ldd, int r0, int rows,
   if (c0 < k) outer_rest<R, J - 1, TAIL>(k - c0, D, ldd, r0, rows, X, ldx, c0, n, G, ldg);
 }
 
+// gb += rowsum(D), points in order.
+KS_AVX2 void rowsum_acc_impl(const float* D, ptrdiff_t ldd, int rows, int n, float* gb) {
+  const int ldg = pad8(rows);
+  for (int r0 = 0; r0 < ldg; r0 += 8) {
+    const bool full = rows - r0 >= 8;
+    const __m256i mask = tail_mask(full ? 8 : rows - r0);
+    __m256 s = _mm256_loadu_ps(gb + r0);
+    const float* d = D + r0;
+    if (full)
+      for (int p = 0; p < n; ++p, d += ldd) s = _mm256_add_ps(s, _mm256_loadu_ps(d));
+    else
+      for (int p = 0; p < n; ++p, d += ldd) s = _mm256_add_ps(s, _mm256_maskload_ps(d, mask));
+    _mm256_storeu_ps(gb + r0, s);
+  }
+}
+
 KS_AVX2 void outer_acc_impl(const float* D, ptrdiff_t ldd, int rows, const float* X, ptrdiff_t ldx,
                             int k, int n, float* G, float* gb) {
   const int ldg = pad8(rows);
@@ -237,18 +254,7 @@ KS_AVX2 void outer_acc_impl(const float* D, ptrdiff_t ldd, int rows, const float
     else
       outer_chunk<1, false>(D, ldd, r0, rows, X, ldx, k, n, G, ldg);
   }
-  // Bias gradient: row sums of D, points in order.
-  for (r0 = 0; r0 < ldg; r0 += 8) {
-    const bool full = rows - r0 >= 8;
-    const __m256i mask = tail_mask(full ? 8 : rows - r0);
-    __m256 s = _mm256_loadu_ps(gb + r0);
-    const float* d = D + r0;
-    if (full)
-      for (int p = 0; p < n; ++p, d += ldd) s = _mm256_add_ps(s, _mm256_loadu_ps(d));
-    else
-      for (int p = 0; p < n; ++p, d += ldd) s = _mm256_add_ps(s, _mm256_maskload_ps(d, mask));
-    _mm256_storeu_ps(gb + r0, s);
-  }
+  if (gb) rowsum_acc_impl(D, ldd, rows, n, gb);
 }
 
 }  // namespace
@@ -277,6 +283,10 @@ void outer_acc_avx2(const float* D, std::ptrdiff_t ldd, int rows, const float* X
   outer_acc_impl(D, ldd, rows, X, ldx, k, n, G, gb);
 }
 
+void rowsum_acc_avx2(const float* D, std::ptrdiff_t ldd, int rows, int n, float* gb) {
+  rowsum_acc_impl(D, ldd, rows, n, gb);
+}
+
 #pragma GCC diagnostic pop
 
 #else  // not x86: never selected (use_avx2() is false)
@@ -287,6 +297,9 @@ void gemm_cols_avx2(const float*, int, int, const float*, std::ptrdiff_t, int, f
 }
 void outer_acc_avx2(const float*, std::ptrdiff_t, int, const float*, std::ptrdiff_t, int, int,
                     float*, float*) {
+  std::abort();
+}
+void rowsum_acc_avx2(const float*, std::ptrdiff_t, int, int, float*) {
   std::abort();
 }
 

@@ -29,10 +29,13 @@ void gemm_cols_avx2(const float* A, int rows, int k, const float* X, std::ptrdif
                     std::ptrdiff_t ldm);
 
 // G += D X^T and gb += rowsum(D): D is rows x n (leading dim ldd), X is k x n (leading dim ldx),
-// G is rows x k packed as G[j * pad8(rows) + r], gb has pad8(rows) entries. Points are summed
-// in order (the result does not depend on anything but the inputs).
+// G is rows x k packed as G[j * pad8(rows) + r], gb (nullptr: skipped) has pad8(rows) entries.
+// Points are summed in order (the result does not depend on anything but the inputs).
 void outer_acc_avx2(const float* D, std::ptrdiff_t ldd, int rows, const float* X,
                     std::ptrdiff_t ldx, int k, int n, float* G, float* gb);
+
+// gb += rowsum(D), D rows x n (leading dim ldd), gb with pad8(rows) entries; points in order.
+void rowsum_acc_avx2(const float* D, std::ptrdiff_t ldd, int rows, int n, float* gb);
 
 // True when the CPU has AVX2 and FMA.
 bool cpu_has_avx2_fma();

@@ -137,5 +137,28 @@ TEST(MlpKernels, AccumulatesAndIsThreadCountIndependent) {
 #endif
 }
 
+// An empty batch gives empty outputs and leaves the gradients as they were (both paths).
+TEST(MlpKernels, EmptyBatch) {
+  for (mk::Path path : {mk::Path::kEigen, mk::Path::kAvx2}) {
+    if (path == mk::Path::kAvx2 && !mk::cpu_has_avx2_fma()) continue;
+    PathGuard guard(path);
+    Mlp m;
+    m.init({96, 64, 64, 9}, 3, 0.5f);
+    Mlp::Mat X(96, 0), dY(9, 0), Y, dX;
+    MlpCache cache;
+    mlp_forward(m, X, cache, Y);
+    EXPECT_EQ(Y.rows(), 9);
+    EXPECT_EQ(Y.cols(), 0);
+    MlpGrads g;
+    g.zero_like(m);
+    g.W[0](1, 2) = 0.5f;
+    mlp_backward(m, cache, dY, g, &dX);
+    EXPECT_EQ(dX.rows(), 96);
+    EXPECT_EQ(dX.cols(), 0);
+    EXPECT_EQ(g.W[0](1, 2), 0.5f);
+    EXPECT_EQ(g.W[1].squaredNorm(), 0.f);
+  }
+}
+
 }  // namespace
 }  // namespace ks
