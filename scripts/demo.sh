@@ -5,16 +5,17 @@
 # a motion video and a rest-pose 3DGS .ply.
 # Usage: scripts/demo.sh [path/to/kinesplat] [output dir]
 # Tunables (environment): KS_DEMO_ITERS (reconstruct steps, 400), KS_DEMO_SUBDIVIDE (template Loop
-# levels, 1), KS_DEMO_SCALE (coarse training resolution, 0.5; the last quarter trains at full
-# resolution), KS_DEMO_SIZE (video size WxH, 384x512), KS_DEMO_MOTION (second video, dance).
-# Paper-sized setting (hours on 2 cores): KS_DEMO_ITERS=2000 KS_DEMO_SUBDIVIDE=2.
+# levels, 2), KS_DEMO_SCALE (training resolution, 1 = the images'), KS_DEMO_SIZE (video size WxH,
+# 384x512), KS_DEMO_MOTION (second video, dance). A quick look (about a minute of training):
+# KS_DEMO_SUBDIVIDE=1 KS_DEMO_SCALE=0.5. Paper-sized setting (an hour or more on 2 cores):
+# KS_DEMO_ITERS=2000.
 set -euo pipefail
 
 KS=${1:-build/kinesplat}
 OUT=${2:-demo-out}
 ITERS=${KS_DEMO_ITERS:-400}
-SUBDIV=${KS_DEMO_SUBDIVIDE:-1}
-TRAIN_SCALE=${KS_DEMO_SCALE:-0.5}
+SUBDIV=${KS_DEMO_SUBDIVIDE:-2}
+TRAIN_SCALE=${KS_DEMO_SCALE:-1}
 SIZE=${KS_DEMO_SIZE:-384x512}
 MOTION=${KS_DEMO_MOTION:-dance}
 

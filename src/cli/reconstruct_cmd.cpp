@@ -29,12 +29,14 @@ struct Args {
 
 ks::cli::CommandGroup group(40, [](CLI::App& app) {
   auto args = std::make_shared<Args>();
-  // CLI defaults sized for a 2-core CPU (docs/reconstruct.md): 41K Gaussians on the default body.
+  // CLI defaults sized for a 2-core CPU (docs/reconstruct.md "Measured"): the 2-level template
+  // (165K Gaussians on the default body), a 512x512 triplane, every step at the dataset's
+  // resolution. On synth seed 1 these gave +2.7 dB masked PSNR over 1 level / 128 / coarse-to-fine.
   args->opt.iterations = 400;
-  args->opt.subdivide = 1;
-  // Coarse-to-fine: the last quarter at the dataset's resolution (+2 dB masked PSNR at 512x768
-  // on synth seed 0 for about 10 % more CPU time; docs/reconstruct.md "Measured").
-  args->opt.fine_from = 0.75f;
+  args->opt.subdivide = 2;
+  args->opt.triplane_res = 512;
+  args->opt.scale = 1.f;
+  args->opt.fine_from = 1.f;
   auto* sub = app.add_subcommand("reconstruct", "Fit an animatable Gaussian avatar to a dataset");
   sub->add_option("dataset", args->dataset, "Dataset directory (dataset.json + images)")
       ->required();
