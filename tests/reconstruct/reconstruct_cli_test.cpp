@@ -80,8 +80,18 @@ TEST(ReconstructCli, TrainsSavesAndEvaluates) {
   ASSERT_TRUE(fs::exists(av));
   const Avatar a = load_avatar(av);
   EXPECT_EQ(a.num_gaussians(), default_body_model().num_vertices());
-  // Coarse-to-fine by default: the last quarter (iteration 3 of 4) on the fine frames.
-  EXPECT_EQ(a.metadata.value("fine_from_iteration", -1), 3);
+  // Every step at --scale by default (no coarse-to-fine phase: it starts after the last step).
+  EXPECT_EQ(a.metadata.value("fine_from_iteration", -1), 4);
+  EXPECT_EQ(a.metadata.value("subdivide", -1), 0);
+  {
+    // Coarse-to-fine on request: the last quarter (iteration 3 of 4) on the full-size frames.
+    const std::string av2 = (dir / "c2f.ksavatar").string();
+    test::CliRun r2 = run_cli("reconstruct " + (dir / "data").string() + " --out " + av2 +
+                              " --iters 4 --subdivide 0 --scale 0.5 --fine-from 0.75 "
+                              "--triplane-res 16 --hidden 8 -q");
+    ASSERT_EQ(r2.status, 0) << r2.output;
+    EXPECT_EQ(load_avatar(av2).metadata.value("fine_from_iteration", -1), 3);
+  }
   const std::string mj = (dir / "m.json").string();
   r = run_cli("evaluate " + av + " " + (dir / "data").string() + " --out " + mj + " -q");
   ASSERT_EQ(r.status, 0) << r.output;
