@@ -130,14 +130,23 @@ struct Packed {
   }
 };
 
+// Sizes the activation cache (act[0] = input copy, act[l] = layer l-1's output) and Y for a
+// forward pass over X's columns.
+template <typename T>
+void size_forward_buffers(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>& X,
+                          MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y) {
+  const size_t L = m.W.size();
+  cache.act.resize(L);
+  cache.act[0].resize(X.rows(), X.cols());
+  for (size_t l = 1; l < L; ++l) cache.act[l].resize(m.W[l - 1].rows(), X.cols());
+  Y.resize(m.W[L - 1].rows(), X.cols());
+}
+
 void forward_avx2(const MlpT<float>& m, const Eigen::Ref<const MlpT<float>::Mat>& X,
                   MlpCacheT<float>& cache, MlpT<float>::Mat& Y) {
   const size_t L = m.W.size();
   const Eigen::Index n = X.cols();
-  cache.act.resize(L);
-  cache.act[0].resize(X.rows(), n);
-  for (size_t l = 1; l < L; ++l) cache.act[l].resize(m.W[l - 1].rows(), n);
-  Y.resize(m.W[L - 1].rows(), n);
+  size_forward_buffers<float>(m, X, cache, Y);
   // Caller-thread scratch, reused across calls; the OpenMP workers use it through this reference
   // (naming the thread_local inside the parallel region would give each worker its own copy).
   static thread_local Packed packed;
@@ -270,10 +279,7 @@ void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>
   }
   const size_t L = m.W.size();
   const Eigen::Index n = X.cols();
-  cache.act.resize(L);
-  cache.act[0].resize(X.rows(), n);
-  for (size_t l = 1; l < L; ++l) cache.act[l].resize(m.W[l - 1].rows(), n);
-  Y.resize(m.W[L - 1].rows(), n);
+  size_forward_buffers<T>(m, X, cache, Y);
   const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (Eigen::Index bi = 0; bi < blocks; ++bi) {

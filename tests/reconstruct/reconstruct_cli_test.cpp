@@ -34,12 +34,7 @@ void write_tiny_dataset(const std::string& dir) {
   const BodyModel& model = default_body_model();
   Dataset ds;
   ds.betas = Eigen::VectorXd::Zero(model.num_betas);
-  TrainOptions opt;
-  opt.subdivide = 0;
-  opt.triplane_res = 16;
-  opt.triplane_channels = 4;
-  opt.hidden = 8;
-  opt.progress = false;
+  const TrainOptions opt = test::tiny_train_options(16, 4, 8);
   Avatar truth = test::one_step_avatar(model, ds, opt);
   for (int i = 0; i < truth.num_gaussians(); ++i) {
     const float y = truth.gaussians.means[3 * size_t(i) + 1];

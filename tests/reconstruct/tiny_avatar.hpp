@@ -6,6 +6,17 @@
 
 namespace ks::test {
 
+// Trainer options for tiny tests: the unsubdivided template, a small triplane and decoders, quiet.
+inline TrainOptions tiny_train_options(int triplane_res, int triplane_channels, int hidden) {
+  TrainOptions opt;
+  opt.subdivide = 0;
+  opt.triplane_res = triplane_res;
+  opt.triplane_channels = triplane_channels;
+  opt.hidden = hidden;
+  opt.progress = false;
+  return opt;
+}
+
 inline Avatar one_step_avatar(const BodyModel& model, const Dataset& ds, TrainOptions opt) {
   opt.iterations = 1;
   std::vector<TrainFrame> blank(1);

@@ -46,13 +46,8 @@ TEST(Trainer, FitsTinyRenderedPerson) {
   const BodyModel& model = default_body_model();
   Dataset ds;
   ds.betas = Eigen::VectorXd::Zero(model.num_betas);
-  TrainOptions opt;
+  TrainOptions opt = test::tiny_train_options(32, 8, 32);
   opt.iterations = 60;
-  opt.subdivide = 0;
-  opt.triplane_res = 32;
-  opt.triplane_channels = 8;
-  opt.hidden = 32;
-  opt.progress = false;
   // The "truth": a short fit's own structure with colours painted by height.
   Avatar truth = test::one_step_avatar(model, ds, opt);
   for (int i = 0; i < truth.num_gaussians(); ++i) {
@@ -92,12 +87,8 @@ TEST(Trainer, VertexColourResidualFitsFineDetailThroughDensityControl) {
   const BodyModel& model = default_body_model();
   Dataset ds;
   ds.betas = Eigen::VectorXd::Zero(model.num_betas);
-  TrainOptions opt;
-  opt.subdivide = 0;
-  opt.triplane_res = 8;  // cells of ~25 cm: no stripe detail from the triplane
-  opt.triplane_channels = 4;
-  opt.hidden = 16;
-  opt.progress = false;
+  // An 8x8 triplane (cells of ~25 cm): no stripe detail from the triplane.
+  TrainOptions opt = test::tiny_train_options(8, 4, 16);
   Avatar truth = test::one_step_avatar(model, ds, opt);
   for (int i = 0; i < truth.num_gaussians(); ++i) {
     const float y = truth.gaussians.means[3 * size_t(i) + 1];
