@@ -142,28 +142,30 @@ KS_AVX2_INLINE void gemm_rest(int rem, const float* A, int lda, int k, int rows,
   }
 }
 
+// All n points in groups of G, then the remainder as one smaller group.
+template <int G, Epilogue E>
+KS_AVX2_INLINE void gemm_sweep(const float* A, int lda, int k, int rows, const float* X,
+                               ptrdiff_t ldx, int n, float* Y, ptrdiff_t ldy, const float* bias,
+                               const float* M, ptrdiff_t ldm) {
+  int p = 0;
+  for (; p + G <= n; p += G)
+    gemm_group<G, E>(A, lda, k, rows, X + p * ldx, ldx, Y + p * ldy, ldy, bias,
+                     M ? M + p * ldm : nullptr, ldm);
+  if (p < n)
+    gemm_rest<G - 1, E>(n - p, A, lda, k, rows, X + p * ldx, ldx, Y + p * ldy, ldy, bias,
+                        M ? M + p * ldm : nullptr, ldm);
+}
+
 template <Epilogue E>
 KS_AVX2 void gemm_cols_impl(const float* A, int rows, int k, const float* X, ptrdiff_t ldx, int n,
                             float* Y, ptrdiff_t ldy, const float* bias, const float* M,
                             ptrdiff_t ldm) {
   const int lda = pad8(rows);
-  int p = 0;
   // One row vector: 12 points a group (12 accumulators); otherwise 16 rows x 6 points.
-  if (lda == 8) {
-    for (; p + 12 <= n; p += 12)
-      gemm_group<12, E>(A, lda, k, rows, X + p * ldx, ldx, Y + p * ldy, ldy, bias,
-                        M ? M + p * ldm : nullptr, ldm);
-    if (p < n)
-      gemm_rest<11, E>(n - p, A, lda, k, rows, X + p * ldx, ldx, Y + p * ldy, ldy, bias,
-                       M ? M + p * ldm : nullptr, ldm);
-  } else {
-    for (; p + 6 <= n; p += 6)
-      gemm_group<6, E>(A, lda, k, rows, X + p * ldx, ldx, Y + p * ldy, ldy, bias,
-                       M ? M + p * ldm : nullptr, ldm);
-    if (p < n)
-      gemm_rest<5, E>(n - p, A, lda, k, rows, X + p * ldx, ldx, Y + p * ldy, ldy, bias,
-                      M ? M + p * ldm : nullptr, ldm);
-  }
+  if (lda == 8)
+    gemm_sweep<12, E>(A, lda, k, rows, X, ldx, n, Y, ldy, bias, M, ldm);
+  else
+    gemm_sweep<6, E>(A, lda, k, rows, X, ldx, n, Y, ldy, bias, M, ldm);
 }
 
 // ---------------------------------------------------------------------------------------------
