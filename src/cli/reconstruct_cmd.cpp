@@ -77,6 +77,19 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   sub->add_option("--lr-vertex-color", args->opt.lr_vertex_color,
                   "Learning rate of a per-Gaussian colour residual on top of the decoder (0 = off)")
       ->capture_default_str();
+  sub->add_option("--lr-skin", args->opt.lr_skin,
+                  "Learning rate of the learned skin weights (softmax logits; 0 = the body's "
+                  "weights, fixed)")
+      ->capture_default_str();
+  sub->add_option("--skin-from", args->opt.skin_from,
+                  "Learn the skin weights from this fraction of the iterations on")
+      ->capture_default_str();
+  sub->add_option("--w-skin-prior", args->opt.w_skin_prior,
+                  "Weight of the pull of learned skin weights towards the body's")
+      ->capture_default_str();
+  sub->add_option("--w-lap-skin", args->opt.w_lap_skin,
+                  "Weight of the Laplacian smoothness of learned skin weights")
+      ->capture_default_str();
   sub->add_option("--triplane-res", args->opt.triplane_res, "Triplane resolution")
       ->capture_default_str();
   sub->add_option("--hidden", args->opt.hidden, "Hidden width of the decoder MLPs")

@@ -3,6 +3,8 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
+#include "core/error.hpp"
+
 namespace ks {
 
 void lbs_forward(const Gaussians& c, const std::vector<float>& pose_offsets,
@@ -19,13 +21,17 @@ void lbs_forward(const Gaussians& c, const std::vector<float>& pose_offsets,
   cache.A.resize(12 * size_t(n));
   cache.qblend.resize(4 * size_t(n));
   const bool has_po = pose_offsets.size() == 3 * size_t(n);
+  const int K = n > 0 ? int(skin_joints.size() / size_t(n)) : 4;
+  if (n > 0 &&
+      (K < 1 || skin_joints.size() != size_t(K) * n || skin_weights.size() != skin_joints.size()))
+    throw Error("lbs_forward: skin joints/weights must be K per Gaussian");
 #pragma omp parallel for schedule(static) if (n > 1024)
   for (int i = 0; i < n; ++i) {
     Eigen::Matrix<double, 3, 4> A = Eigen::Matrix<double, 3, 4>::Zero();
-    for (int k = 0; k < 4; ++k) {
-      const float w = skin_weights[4 * size_t(i) + k];
+    for (int k = 0; k < K; ++k) {
+      const float w = skin_weights[size_t(K) * i + k];
       if (w == 0.f) continue;
-      A += double(w) * transforms[skin_joints[4 * size_t(i) + k]].topRows<3>();
+      A += double(w) * transforms[size_t(skin_joints[size_t(K) * i + k])].topRows<3>();
     }
     float* a = cache.A.data() + 12 * size_t(i);
     for (int r = 0; r < 3; ++r)

@@ -1,6 +1,6 @@
 #pragma once
-// Linear blend skinning of canonical Gaussians (3DGS-avatar style). For Gaussian i with top-4
-// skin weights w_ij over joints j (4x4 skinning transforms T_j, rest -> posed):
+// Linear blend skinning of canonical Gaussians (3DGS-avatar style). For Gaussian i with K (usually
+// 4) skin weights w_ij over joints j (4x4 skinning transforms T_j, rest -> posed):
 //   A_i = sum_j w_ij T_j            (blended 4x4)
 //   mean'_i = A_i[:3,:3] (mean_i + pose_offset_i) + A_i[:3,3]
 //   quat'_i = q(A_i) * quat_i       (q(A) = the quaternion of the blended 3x3, normalised)

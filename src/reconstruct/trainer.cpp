@@ -17,6 +17,7 @@
 #include "reconstruct/adam.hpp"
 #include "reconstruct/lbs.hpp"
 #include "reconstruct/mlp.hpp"
+#include "reconstruct/skinning.hpp"
 #include "reconstruct/triplane.hpp"
 
 namespace ks {
@@ -62,6 +63,8 @@ struct Fit {
   std::vector<float> xs, ys, zs;
   Laplacian lap;
   std::vector<float> vcolor;  // 3N per-vertex SH0 residual (opt->lr_vertex_color > 0)
+  LearnedSkin skin;           // opt->lr_skin > 0
+  bool learn_skin = false;
   bool resized = false;
 
   void rebuild() {
@@ -89,6 +92,7 @@ struct Fit {
           (stencil * old.cast<double>()).cast<float>();
       f->vcolor.assign(now.data(), now.data() + now.size());
     }
+    if (f->learn_skin) f->skin.remap(stencil);
     f->rebuild();
     f->resized = true;
   }
@@ -254,6 +258,10 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
     std::vector<int32_t> sj;
     top_k_skin_weights(W, 4, sj, st.skin_weights);
     st.skin_joints.assign(sj.begin(), sj.end());
+    if (opt.lr_skin > 0) {
+      fit.skin.init(W, model.parents, opt.skin_candidates);
+      fit.learn_skin = true;
+    }
     if (int(model.part_labels.size()) == model.num_vertices())
       st.part_labels = carry_labels(fit.S, model.part_labels);
     else
@@ -327,10 +335,16 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
     fit.vcolor.assign(3 * size_t(n0), 0.f);
     vcolor_group = adam.add_group("vertex_color", &fit.vcolor, opt.lr_vertex_color);
   }
+  int skin_group = -1;
+  if (fit.learn_skin) skin_group = adam.add_group("skin_logits", &fit.skin.logits, opt.lr_skin);
+  const int skin_start =
+      std::clamp(int(std::lround(double(opt.skin_from) * opt.iterations)), 0, opt.iterations);
+  const int num_joints = model.num_joints();
 
   // Buffers reused across iterations.
   Gaussians canon, posed;
   std::vector<float> offsets, pose_off, dmeans_c, dquats_c, doff, dsh, dplanes, geo_grad, app_grad;
+  std::vector<float> skin_w, skin_dw, skin_dl, skin_dense, skin_ddense, xcanon;
   LbsCache lbs_cache;
   RasterResult rr;
   RasterGrads rg;
@@ -374,7 +388,13 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       for (int i = 0; i < n; ++i)
         for (int k = 0; k < 3; ++k) pose_off[3 * size_t(i) + k] = float(po(i, k));
     }
-    lbs_forward(canon, pose_off, st.skin_joints, st.skin_weights, bs.transforms, posed, lbs_cache);
+    if (fit.learn_skin) {
+      fit.skin.weights(skin_w);
+      lbs_forward(canon, pose_off, fit.skin.joints, skin_w, bs.transforms, posed, lbs_cache);
+    } else {
+      lbs_forward(canon, pose_off, st.skin_joints, st.skin_weights, bs.transforms, posed,
+                  lbs_cache);
+    }
     rasterize_forward(posed, fr.camera, rs, rr);
 
     // Image and mask losses.
@@ -418,9 +438,31 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       lap_pos = laplacian_loss<float>(fit.lap, offsets.data(), 3, opt.w_lap_position, doff.data());
       lap_col = laplacian_loss<float>(fit.lap, canon.sh.data(), 3, opt.w_lap_color, dsh.data());
     }
+    // Learned skin weights: image gradient through the posed means, prior pull, smoothness.
+    float skin_reg = 0;
+    if (fit.learn_skin) {
+      const int K = fit.skin.K;
+      if (it >= skin_start) {
+        xcanon.resize(3 * size_t(n));
+        for (size_t q = 0; q < 3 * size_t(n); ++q) xcanon[q] = canon.means[q] + pose_off[q];
+        skin_weight_backward(fit.skin.joints, K, bs.transforms, xcanon, rg.means, skin_dw);
+        skin_reg += opt.w_skin_prior *
+                    skin_prior_loss(skin_w, fit.skin.prior, K, opt.w_skin_prior, skin_dw);
+        if (opt.w_lap_skin > 0 && opt.laplacian != LaplacianMode::kNone) {
+          skin_to_dense(fit.skin.joints, skin_w, K, num_joints, skin_dense);
+          skin_ddense.assign(skin_dense.size(), 0.f);
+          skin_reg += opt.w_lap_skin * laplacian_loss<float>(fit.lap, skin_dense.data(), num_joints,
+                                                             opt.w_lap_skin, skin_ddense.data());
+          skin_gather_dense(fit.skin.joints, K, num_joints, skin_ddense, skin_dw);
+        }
+        softmax_backward(skin_w, skin_dw, K, skin_dl);
+      } else {
+        skin_dl.assign(fit.skin.logits.size(), 0.f);
+      }
+    }
     const float loss = opt.w_l1 * l1 + opt.w_ssim * (1.f - ss) + opt.w_mask * lmask +
                        opt.w_offset * float(off_l2) + opt.w_lap_position * lap_pos +
-                       opt.w_lap_color * lap_col;
+                       opt.w_lap_color * lap_col + skin_reg;
     last_loss = loss;
 
     // Back to the decoder outputs.
@@ -455,10 +497,12 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
                       dplanes.data());
     ggeo.pack(geo_grad);
     gapp.pack(app_grad);
-    if (vcolor_group >= 0)
-      adam.step({&dplanes, &geo_grad, &app_grad, &dsh});
-    else
-      adam.step({&dplanes, &geo_grad, &app_grad});
+    {
+      std::vector<const std::vector<float>*> grads = {&dplanes, &geo_grad, &app_grad};
+      if (vcolor_group >= 0) grads.push_back(&dsh);
+      if (skin_group >= 0) grads.push_back(&skin_dl);
+      adam.step(grads);
+    }
 
     // Density-control statistics and hook.
     for (int i = 0; i < n; ++i) {
@@ -472,11 +516,16 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       st.iteration = it;
       st.canonical = canon;
       opt.density->step(it, st);
+      // New vertex set: per-vertex parameters were carried by the stencil, the moments restart.
       if (fit.resized && vcolor_group >= 0) {
-        // New vertex set: the residuals were carried by the stencil, the moments restart.
         AdamGroup& g = adam.group(vcolor_group);
         g.m.assign(fit.vcolor.size(), 0.f);
         g.v.assign(fit.vcolor.size(), 0.f);
+      }
+      if (fit.resized && skin_group >= 0) {
+        AdamGroup& g = adam.group(skin_group);
+        g.m.assign(fit.skin.logits.size(), 0.f);
+        g.v.assign(fit.skin.logits.size(), 0.f);
       }
       fit.resized = false;
     }
@@ -522,8 +571,12 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
   av.anchors.resize(3 * size_t(n));
   for (int i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) av.anchors[3 * size_t(i) + k] = float(st.anchors(i, k));
-  av.skin_joints.assign(st.skin_joints.begin(), st.skin_joints.end());
-  av.skin_weights = st.skin_weights;
+  if (fit.learn_skin) {
+    fit.skin.top4(av.skin_joints, av.skin_weights);
+  } else {
+    av.skin_joints.assign(st.skin_joints.begin(), st.skin_joints.end());
+    av.skin_weights = st.skin_weights;
+  }
   av.part_labels.assign(st.part_labels.begin(), st.part_labels.end());
   if (model.posedirs.size() > 0 && model.posedirs.cwiseAbs().maxCoeff() > 0) {
     const int Pd = int(model.posedirs.cols());
@@ -548,6 +601,7 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
                     : opt.laplacian == LaplacianMode::kUniform ? "uniform"
                                                                : "none"},
       {"perturb", opt.perturb.enabled},
+      {"learned_skin", fit.learn_skin},
       {"seed", opt.seed},
       {"frames", frames.size()},
   };

@@ -53,6 +53,15 @@ struct TrainOptions {
   // output (texture detail finer than the triplane's cells). Carried through density control by
   // the stencil. lr in SH units (colour = 0.282 x SH + 0.5). 0 = off.
   float lr_vertex_color = 0.f;
+  // Learned skin weights (reconstruct/skinning.hpp): a softmax over `skin_candidates` joints per
+  // Gaussian, initialised to the body's weights, learned from iteration skin_from * iterations
+  // on, pulled towards the body's weights (w_skin_prior) and smoothed over the template
+  // (w_lap_skin, the same Laplacian as the anchors'). lr_skin in logit units; 0 = the body's
+  // weights, fixed.
+  float lr_skin = 0.f;
+  int skin_candidates = 8;
+  float skin_from = 0.f;
+  float w_skin_prior = 0.1f, w_lap_skin = 1.0f;
   float scale_factor = 0.6f;   // initial scale = scale_factor * mean template edge length
   float init_opacity = 0.95f;  // initial opacity
   // 3D smoothing filter (as Mip-Splatting's): every Gaussian's variance gets filter3d * p^2 added,
