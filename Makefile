@@ -30,11 +30,12 @@ demo: deps build
 	./scripts/demo.sh $(BUILD_DIR)/kinesplat $(DEMO_DIR)
 
 # The rasterizer benchmark at the project's reference size (the README's figures), then the
-# Google Benchmark programs (rasterizer, decoder MLPs).
+# Google Benchmark programs (rasterizer, decoder MLPs, the fit's Adam step and triplane).
 bench: deps build
 	$(BUILD_DIR)/kinesplat bench raster --gaussians 110000 --width 512 --height 768 --backward --frames 10
 	$(BUILD_DIR)/raster_bench
 	$(BUILD_DIR)/mlp_bench
+	$(BUILD_DIR)/train_step_bench
 
 format:
 	find src tests bench -name '*.cpp' -o -name '*.hpp' | xargs clang-format -i
