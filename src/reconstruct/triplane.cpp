@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <vector>
 
 namespace ks {
 
@@ -88,28 +89,55 @@ void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T
                        const T* dfeats, T* dplanes) {
   const int C = tp.channels;
   const int F = 3 * C;
-  constexpr int kBlock = 8;
-  const int blocks = (C + kBlock - 1) / kBlock;
-  const int tasks = 3 * blocks;
-#pragma omp parallel for schedule(dynamic, 1) if (n > 1024)
-  for (int task = 0; task < tasks; ++task) {
-    const int p = task / blocks;
-    const int c0 = (task % blocks) * kBlock;
-    const int c1 = std::min(C, c0 + kBlock);
-    T* base = dplanes + p * tp.plane_size();
-    for (int i = 0; i < n; ++i) {
+  const int res = tp.res;
+  // Points are binned by the texel row of their lookup into horizontal stripes of each plane; a
+  // point writes rows v0 and v0 + 1, so stripes of >= 2 rows two apart never touch the same
+  // texel: even stripes run in parallel, then odd ones. Each task writes whole texels (all C
+  // channels, contiguous) of one stripe, with the points in index order, so the sums are the same
+  // for any thread count.
+  const int stripes = std::max(1, std::min(64, (res - 1) / 2));
+  const int rows_per = (res - 1 + stripes - 1) / stripes;  // v0 is in [0, res - 2]
+  std::vector<int> start(size_t(3) * (stripes + 1), 0), order(size_t(3) * n);
+  std::vector<int> stripe_of(size_t(3) * n);
+#pragma omp parallel for schedule(static) if (n > 1024)
+  for (int i = 0; i < n; ++i)
+    for (int p = 0; p < 3; ++p) {
       const Bilinear<T> b = lookup(tp, p, xs[i], ys[i], zs[i]);
-      const T* g = dfeats + size_t(i) * F + p * C;
-      T* t00 = base + size_t(b.i00) * C;
-      T* t10 = t00 + size_t(b.du) * C;
-      T* t01 = t00 + size_t(b.dv) * C;
-      T* t11 = t01 + size_t(b.du) * C;
-      for (int c = c0; c < c1; ++c) {
-        const T gc = g[c];
-        t00[c] += b.w00 * gc;
-        t10[c] += b.w10 * gc;
-        t01[c] += b.w01 * gc;
-        t11[c] += b.w11 * gc;
+      stripe_of[size_t(p) * n + i] = (b.i00 / res) / rows_per;
+    }
+  for (int p = 0; p < 3; ++p) {
+    int* st = start.data() + size_t(p) * (stripes + 1);
+    const int* so = stripe_of.data() + size_t(p) * n;
+    for (int i = 0; i < n; ++i) ++st[so[i] + 1];
+    for (int s = 0; s < stripes; ++s) st[s + 1] += st[s];
+    std::vector<int> fill(st, st + stripes);
+    int* ord = order.data() + size_t(p) * n;
+    for (int i = 0; i < n; ++i) ord[fill[size_t(so[i])]++] = i;
+  }
+  for (int parity = 0; parity < 2; ++parity) {
+    const int per_plane = (stripes + 1 - parity) / 2;
+#pragma omp parallel for schedule(dynamic, 1) if (n > 1024)
+    for (int task = 0; task < 3 * per_plane; ++task) {
+      const int p = task / per_plane;
+      const int s = 2 * (task % per_plane) + parity;
+      const int* st = start.data() + size_t(p) * (stripes + 1);
+      const int* ord = order.data() + size_t(p) * n;
+      T* base = dplanes + p * tp.plane_size();
+      for (int k = st[s]; k < st[s + 1]; ++k) {
+        const int i = ord[k];
+        const Bilinear<T> b = lookup(tp, p, xs[i], ys[i], zs[i]);
+        const T* g = dfeats + size_t(i) * F + p * C;
+        T* t00 = base + size_t(b.i00) * C;
+        T* t10 = t00 + size_t(b.du) * C;
+        T* t01 = t00 + size_t(b.dv) * C;
+        T* t11 = t01 + size_t(b.du) * C;
+        for (int c = 0; c < C; ++c) {
+          const T gc = g[c];
+          t00[c] += b.w00 * gc;
+          t10[c] += b.w10 * gc;
+          t01[c] += b.w01 * gc;
+          t11[c] += b.w11 * gc;
+        }
       }
     }
   }

@@ -32,8 +32,9 @@ struct TriplaneT {
 template <typename T>
 void triplane_forward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T* zs, int n,
                       T* feats);
-// Accumulates (adds) dL/dplanes into dplanes (size tp.size()). Race-free: threads split the work
-// by (plane, channel block), each scanning all points.
+// Accumulates (adds) dL/dplanes into dplanes (size tp.size()). Race-free and the same for any
+// thread count: points are binned by texel row into stripes of each plane, and threads take
+// every other stripe in two passes.
 template <typename T>
 void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T* zs, int n,
                        const T* dfeats, T* dplanes);
