@@ -40,6 +40,15 @@ std::vector<TrainFrame> make_frames(const BodyModel& model, const Dataset& ds, c
   return frames;
 }
 
+// PSNR of the avatar posed and rendered as the frame (on the dataset's background).
+double frame_psnr(const Avatar& a, const Dataset& ds, const TrainFrame& fr) {
+  RasterSettings rs;
+  for (int k = 0; k < 3; ++k) rs.background[k] = ds.background[k];
+  RasterResult r;
+  rasterize_forward(pose_avatar(a, fr.pose), fr.camera, rs, r);
+  return psnr(r.color, fr.image);
+}
+
 }  // namespace
 
 TEST(Trainer, FitsTinyRenderedPerson) {
@@ -66,12 +75,7 @@ TEST(Trainer, FitsTinyRenderedPerson) {
   EXPECT_EQ(a1.num_gaussians(), model.num_vertices());
   EXPECT_NO_THROW(a1.validate());
   // Render both from frame 1 and compare to the target.
-  RasterSettings rs;
-  for (int k = 0; k < 3; ++k) rs.background[k] = ds.background[k];
-  RasterResult r0, r1;
-  rasterize_forward(pose_avatar(a0, frames[1].pose), frames[1].camera, rs, r0);
-  rasterize_forward(pose_avatar(a1, frames[1].pose), frames[1].camera, rs, r1);
-  const double p0 = psnr(r0.color, frames[1].image), p1 = psnr(r1.color, frames[1].image);
+  const double p0 = frame_psnr(a0, ds, frames[1]), p1 = frame_psnr(a1, ds, frames[1]);
   EXPECT_GT(p1, p0 + 3.0) << "start " << p0 << " dB, after " << p1 << " dB";
   // Deterministic under the seed up to the summation order of the rasterizer's threaded
   // backward pass (bit-identical with one thread).
@@ -105,11 +109,7 @@ TEST(Trainer, VertexColourResidualFitsFineDetailThroughDensityControl) {
     Avatar a = train_avatar(model, ds, frames, o);
     EXPECT_NO_THROW(a.validate());
     *count = a.num_gaussians();
-    RasterSettings rs;
-    for (int k = 0; k < 3; ++k) rs.background[k] = ds.background[k];
-    RasterResult r;
-    rasterize_forward(pose_avatar(a, frames[1].pose), frames[1].camera, rs, r);
-    return psnr(r.color, frames[1].image);
+    return frame_psnr(a, ds, frames[1]);
   };
   int n_off = 0, n_on = 0, n_dc = 0;
   const double p_off = fit_psnr(0.f, nullptr, &n_off);
@@ -164,12 +164,9 @@ TEST(Trainer, LearnedSkinWeightsFollowSkinningTheBodyCannot) {
     o.w_lap_skin = 0.f;
     Avatar a = train_avatar(model, ds, frames, o);
     EXPECT_NO_THROW(a.validate());
-    RasterSettings rs;
-    for (int k = 0; k < 3; ++k) rs.background[k] = ds.background[k];
-    RasterResult r;
-    rasterize_forward(pose_avatar(a, frames[1].pose), frames[1].camera, rs, r);
+    const double p = frame_psnr(a, ds, frames[1]);
     if (out) *out = std::move(a);
-    return psnr(r.color, frames[1].image);
+    return p;
   };
   Avatar learned;
   const double p_fixed = fit(0.f, nullptr), p_learned = fit(0.2f, &learned);
