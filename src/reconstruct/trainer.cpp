@@ -388,13 +388,9 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       for (int i = 0; i < n; ++i)
         for (int k = 0; k < 3; ++k) pose_off[3 * size_t(i) + k] = float(po(i, k));
     }
-    if (fit.learn_skin) {
-      fit.skin.weights(skin_w);
-      lbs_forward(canon, pose_off, fit.skin.joints, skin_w, bs.transforms, posed, lbs_cache);
-    } else {
-      lbs_forward(canon, pose_off, st.skin_joints, st.skin_weights, bs.transforms, posed,
-                  lbs_cache);
-    }
+    if (fit.learn_skin) fit.skin.weights(skin_w);
+    lbs_forward(canon, pose_off, fit.learn_skin ? fit.skin.joints : st.skin_joints,
+                fit.learn_skin ? skin_w : st.skin_weights, bs.transforms, posed, lbs_cache);
     rasterize_forward(posed, fr.camera, rs, rr);
 
     // Image and mask losses.
@@ -517,16 +513,13 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       st.canonical = canon;
       opt.density->step(it, st);
       // New vertex set: per-vertex parameters were carried by the stencil, the moments restart.
-      if (fit.resized && vcolor_group >= 0) {
-        AdamGroup& g = adam.group(vcolor_group);
-        g.m.assign(fit.vcolor.size(), 0.f);
-        g.v.assign(fit.vcolor.size(), 0.f);
-      }
-      if (fit.resized && skin_group >= 0) {
-        AdamGroup& g = adam.group(skin_group);
-        g.m.assign(fit.skin.logits.size(), 0.f);
-        g.v.assign(fit.skin.logits.size(), 0.f);
-      }
+      if (fit.resized)
+        for (int gi : {vcolor_group, skin_group}) {
+          if (gi < 0) continue;
+          AdamGroup& g = adam.group(gi);
+          g.m.assign(g.params->size(), 0.f);
+          g.v.assign(g.params->size(), 0.f);
+        }
       fit.resized = false;
     }
 
