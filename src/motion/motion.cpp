@@ -87,7 +87,12 @@ Pose turn_pose(double u) {
   Pose p;
   const double phase = 2 * M_PI * 4 * u;  // 4 step cycles (8 small steps) per turn
   const double s = std::sin(phase);
-  stance(p, 62.0, 14.0 + 4.0 * (0.5 - 0.5 * std::cos(phase)));
+  // The arms rise by 30 degrees four times per turn, highest at the diagonal views (between
+  // steps), so that the sides of the torso, the armpits and the undersides of the arms are seen
+  // from the fixed camera; at the front, side and back views they hang in the A-pose.
+  const double raise = 30.0;
+  const double up = 0.5 - 0.5 * std::cos(phase);
+  stance(p, 62.0 - raise * up, 14.0 + 4.0 * (0.5 - 0.5 * std::cos(phase)));
   const double lift_l = std::pow(std::max(0.0, s), 2), lift_r = std::pow(std::max(0.0, -s), 2);
   leg(p, true, 14.0 * lift_l, 28.0 * lift_l, -8.0 * lift_l);
   leg(p, false, 14.0 * lift_r, 28.0 * lift_r, -8.0 * lift_r);
@@ -190,7 +195,8 @@ struct Builtin {
 const std::vector<Builtin>& builtins() {
   static const std::vector<Builtin> b = {
       {{"turn",
-        "360 degree turn in place, arms in an A-pose with a gentle swing, small steps "
+        "360 degree turn in place, arms in an A-pose with a gentle swing that rise four times "
+        "(at the diagonal views), small steps "
         "(SinGS pose-space sampling)",
         64},
        true,

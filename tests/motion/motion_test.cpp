@@ -104,6 +104,16 @@ TEST(Motion, TurnCoversFullCircle) {
   }
   EXPECT_GT(max_left, 0.3);
   EXPECT_GT(max_right, 0.3);
+  // The arms hang in the A-pose (62 degrees below horizontal) at the front, side and back views
+  // and rise by 30 degrees at the diagonal views, where the torso's sides can be seen.
+  using namespace smpl_joint;
+  auto arm_drop = [&](int i) {
+    const Eigen::Vector3d l =
+        chain_dir(m.frames[size_t(i)], {kLeftCollar, kLeftShoulder}, Eigen::Vector3d::UnitX());
+    return std::asin(-l.y()) * 180 / M_PI;
+  };
+  for (int i : {0, 16, 32, 48}) EXPECT_NEAR(arm_drop(i), 62.0, 1.0) << i;
+  for (int i : {8, 24, 40, 56}) EXPECT_NEAR(arm_drop(i), 32.0, 1.0) << i;
 }
 
 TEST(Motion, StandingPoseLowersTheArms) {
