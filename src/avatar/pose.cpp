@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/error.hpp"
+#include "mesh/trimesh.hpp"
 
 namespace ks {
 
@@ -160,7 +161,23 @@ inline void blend(const float* T, const int32_t* js, const float* ws, float M[12
 
 }  // namespace
 
-void pose_avatar(const Avatar& a, const BodyParams& p, Gaussians& out) {
+std::vector<float> avatar_anchor_normals(const Avatar& a) {
+  const long N = a.num_gaussians();
+  if (N == 0 || a.template_vertices.rows() != N || a.template_faces.rows() == 0 ||
+      a.anchors.size() != size_t(3 * N))
+    return {};
+  for (long i = 0; i < N; ++i)
+    for (int k = 0; k < 3; ++k)
+      if (std::abs(a.template_vertices(i, k) - double(a.anchors[size_t(3 * i + k)])) > 1e-4)
+        return {};
+  const Eigen::MatrixXd n = vertex_normals(a.template_vertices, a.template_faces);
+  std::vector<float> out(size_t(3 * N));
+  for (long i = 0; i < N; ++i)
+    for (int k = 0; k < 3; ++k) out[size_t(3 * i + k)] = float(n(i, k));
+  return out;
+}
+
+void pose_avatar(const Avatar& a, const BodyParams& p, Gaussians& out, const BackfaceCull* cull) {
   const auto A = avatar_joint_transforms(a, p);
   const std::vector<float> T = pack_transforms(A);
   const Gaussians& g = a.gaussians;
@@ -186,6 +203,14 @@ void pose_avatar(const Avatar& a, const BodyParams& p, Gaussians& out) {
     offsets = a.posedirs * feat;
   }
   const float* off = offsets.size() > 0 ? offsets.data() : nullptr;
+  if (cull && !(cull->threshold >= 0.f))
+    throw Error("pose_avatar: the back-face cull threshold must be in [0, 1]");
+  const float* nrm =
+      cull && cull->normals && cull->normals->size() == size_t(3 * N) && cull->threshold < 1.f
+          ? cull->normals->data()
+          : nullptr;
+  const float ex = nrm ? float(cull->eye.x()) : 0.f, ey = nrm ? float(cull->eye.y()) : 0.f,
+              ez = nrm ? float(cull->eye.z()) : 0.f, thr = nrm ? cull->threshold : 1.f;
 
 #pragma omp parallel for schedule(static)
   for (long i = 0; i < N; ++i) {
@@ -201,6 +226,19 @@ void pose_avatar(const Avatar& a, const BodyParams& p, Gaussians& out) {
     out.means[3 * i] = M[0] * x + M[1] * y + M[2] * z + M[3];
     out.means[3 * i + 1] = M[4] * x + M[5] * y + M[6] * z + M[7];
     out.means[3 * i + 2] = M[8] * x + M[9] * y + M[10] * z + M[11];
+    if (nrm) {
+      const float* n0 = nrm + 3 * i;
+      const float nx = M[0] * n0[0] + M[1] * n0[1] + M[2] * n0[2];
+      const float ny = M[4] * n0[0] + M[5] * n0[1] + M[6] * n0[2];
+      const float nz = M[8] * n0[0] + M[9] * n0[1] + M[10] * n0[2];
+      const float vx = out.means[3 * i] - ex, vy = out.means[3 * i + 1] - ey,
+                  vz = out.means[3 * i + 2] - ez;
+      const float d = nx * vx + ny * vy + nz * vz;
+      // cos > thr without square roots (d > 0 is required first).
+      if (d > 0.f &&
+          d * d > thr * thr * (nx * nx + ny * ny + nz * nz) * (vx * vx + vy * vy + vz * vz))
+        out.opacity_logits[i] = kCulledOpacityLogit;
+    }
     const float R[9] = {M[0], M[1], M[2], M[4], M[5], M[6], M[8], M[9], M[10]};
     float qb[4];
     matrix_to_quat(R, qb);

@@ -30,6 +30,7 @@ struct AnimateArgs {
                       background = "1,1,1";
   int frames = 0;
   bool ply = false;
+  float backface_cull = 0.4f;
 };
 
 void parse_size(const std::string& s, int& w, int& h) {
@@ -128,6 +129,9 @@ void run_animate(const AnimateArgs& args) {
   RasterSettings rs;
   parse_rgb(args.background, rs.background);
   if (args.frames < 0) throw Error("--frames must be >= 0");
+  if (!(args.backface_cull >= 0.f && args.backface_cull <= 1.f))
+    throw Error("--backface-cull: expected a cosine in [0, 1] (1 = off), got " +
+                std::to_string(args.backface_cull));
   const Avatar avatar = load_avatar(args.avatar);
   const Motion motion = get_motion(args.motion, args.frames);
   if (motion.frames.empty()) throw Error("motion \"" + args.motion + "\" has no frames");
@@ -154,13 +158,26 @@ void run_animate(const AnimateArgs& args) {
       "animate: %d Gaussians, motion \"%s\" (%d frames at %.1f fps), "
       "camera %s, %dx%d\n",
       avatar.num_gaussians(), motion.name.c_str(), F, motion.fps, args.camera.c_str(), W, H);
+  // Back-face culling needs the template's normals at the anchors; the per-frame .ply files
+  // keep every Gaussian, so --ply turns it off.
+  const bool want_cull = args.backface_cull < 1.f && !args.ply;
+  const std::vector<float> normals =
+      want_cull ? avatar_anchor_normals(avatar) : std::vector<float>{};
+  const bool cull_on = !normals.empty();
+  if (want_cull && !cull_on)
+    std::printf(
+        "animate: the avatar's template is not one vertex per Gaussian; no back-face culling\n");
   Gaussians g;
   RasterResult rr;
   Progress prog("animate", F);
   double render_s = 0;
   for (int f = 0; f < F; ++f) {
     const auto t0 = std::chrono::steady_clock::now();
-    pose_avatar(avatar, motion.frames[f], g);
+    BackfaceCull cull;
+    cull.normals = &normals;
+    cull.eye = cams[f].centre();
+    cull.threshold = args.backface_cull;
+    pose_avatar(avatar, motion.frames[f], g, cull_on ? &cull : nullptr);
     rasterize_forward(g, cams[f], rs, rr);
     render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     char name[32];
@@ -193,8 +210,10 @@ void run_animate(const AnimateArgs& args) {
     std::printf("animate: wrote %d frames%s to %s/\n", F, args.ply ? " (PNG + .ply)" : " (PNG)",
                 args.out.c_str());
   }
-  std::printf("animate: pose + render %.1f ms per frame (%.1f fps)\n", 1e3 * render_s / F,
-              F / std::max(render_s, 1e-9));
+  std::printf(
+      "animate: pose + render %.1f ms per frame (%.1f fps), back-face culling %s\n",
+      1e3 * render_s / F, F / std::max(render_s, 1e-9),
+      cull_on ? ("at cos > " + std::to_string(args.backface_cull).substr(0, 4)).c_str() : "off");
 }
 
 }  // namespace ks::cli
@@ -213,7 +232,13 @@ ks::cli::CommandGroup group(70, [](CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--size", args->size, "Image size WxH")->capture_default_str();
   sub->add_option("--frames", args->frames, "Number of frames (0: the motion's length)");
-  sub->add_flag("--ply", args->ply, "Also write each frame as a standard 3DGS .ply");
+  sub->add_flag("--ply", args->ply,
+                "Also write each frame as a standard 3DGS .ply (all Gaussians: turns the "
+                "back-face culling off)");
+  sub->add_option("--backface-cull", args->backface_cull,
+                  "Skip Gaussians whose posed surface normal faces away from the camera by more "
+                  "than this cosine (0-1; 1 = off, render every Gaussian)")
+      ->capture_default_str();
   sub->add_option("--background", args->background, "Background colour r,g,b in [0,1]")
       ->capture_default_str();
   sub->callback([args] { ks::cli::run_animate(*args); });

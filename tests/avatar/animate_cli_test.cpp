@@ -80,6 +80,9 @@ TEST(AnimateCli, ClearErrors) {
   r = run_cli("animate " + t / "a.ksavatar" + " --size 10 --out " + t / "x");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("--size"), std::string::npos) << r.output;
+  r = run_cli("animate " + t / "a.ksavatar" + " --backface-cull 1.5 --out " + t / "x");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("--backface-cull"), std::string::npos) << r.output;
   r = run_cli("animate " + t / "a.ksavatar" + " --motion no-such-motion --out " + t / "x");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("no-such-motion"), std::string::npos) << r.output;

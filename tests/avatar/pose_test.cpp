@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 
 #include "avatar/tiny_avatar.hpp"
+#include "core/error.hpp"
 
 namespace ks {
 namespace {
@@ -31,6 +32,53 @@ TEST(AvatarPose, IdentityPoseReturnsCanonical) {
   EXPECT_EQ(g.log_scales, a.gaussians.log_scales);
   EXPECT_EQ(g.sh, a.gaussians.sh);
   EXPECT_EQ(g.opacity_logits, a.gaussians.opacity_logits);
+}
+
+TEST(AvatarPose, AnchorNormalsPointOutwards) {
+  Avatar a = test::tiny_avatar();
+  const std::vector<float> n = avatar_anchor_normals(a);
+  ASSERT_EQ(n.size(), a.anchors.size());
+  const Eigen::Vector3f centre(0.f, 0.5f, 0.f);
+  for (int i = 0; i < a.num_gaussians(); ++i) {
+    const Eigen::Vector3f ni(&n[3 * size_t(i)]);
+    const Eigen::Vector3f out = (Eigen::Vector3f(&a.anchors[3 * size_t(i)]) - centre).normalized();
+    EXPECT_NEAR(ni.norm(), 1.f, 1e-5);
+    EXPECT_GT(ni.dot(out), 0.9f) << i;
+  }
+  // A template that is not one vertex per Gaussian at its anchor gives nothing to cull by.
+  a.template_vertices(2, 1) += 0.1;
+  EXPECT_TRUE(avatar_anchor_normals(a).empty());
+}
+
+TEST(AvatarPose, BackfaceCullDropsTheFarSideOnly) {
+  const Avatar a = test::tiny_avatar();
+  const std::vector<float> normals = avatar_anchor_normals(a);
+  BackfaceCull cull;
+  cull.normals = &normals;
+  cull.eye = Eigen::Vector3d(0, 0.5, 5);  // in front (+Z), level with the octahedron's centre
+  cull.threshold = 0.4f;
+  BodyParams p = zero_params(a);
+  Gaussians g;
+  pose_avatar(a, p, g, &cull);
+  // Vertex 5 (z = -0.3) faces away; vertex 4 (z = +0.3) faces the camera; the others are seen
+  // edge-on (cosine ~0.1) and stay.
+  for (int i = 0; i < a.num_gaussians(); ++i)
+    EXPECT_EQ(g.opacity_logits[size_t(i)] == kCulledOpacityLogit, i == 5) << i;
+  // Turned round about Y, the other side is culled; means and rotations are unaffected.
+  p.global_orient = Eigen::Vector3d(0, M_PI, 0);
+  pose_avatar(a, p, g, &cull);
+  const Gaussians plain = pose_avatar(a, p);
+  for (int i = 0; i < a.num_gaussians(); ++i) {
+    EXPECT_EQ(g.opacity_logits[size_t(i)] == kCulledOpacityLogit, i == 4) << i;
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(g.means[3 * i + k], plain.means[3 * i + k]);
+    for (int k = 0; k < 4; ++k) EXPECT_EQ(g.quats[4 * i + k], plain.quats[4 * i + k]);
+  }
+  // Threshold 1 culls nothing; a threshold outside [0, 1] is refused.
+  cull.threshold = 1.f;
+  pose_avatar(a, p, g, &cull);
+  EXPECT_EQ(g.opacity_logits, a.gaussians.opacity_logits);
+  cull.threshold = -0.5f;
+  EXPECT_THROW(pose_avatar(a, p, g, &cull), Error);
 }
 
 TEST(AvatarPose, GlobalRotationRotatesEverything) {
