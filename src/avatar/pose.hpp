@@ -33,7 +33,7 @@ Eigen::MatrixXd avatar_posed_joints(const Avatar& avatar, const BodyParams& para
 struct BackfaceCull {
   const std::vector<float>* normals = nullptr;  // avatar_anchor_normals(); empty: no culling
   Eigen::Vector3d eye = Eigen::Vector3d::Zero();
-  float threshold = 0.4f;  // cosine; >= 1 culls nothing
+  float threshold = 0.4f;  // cosine in [0, 1]; 1 culls nothing
 };
 constexpr float kCulledOpacityLogit = -100.f;
 
