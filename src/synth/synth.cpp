@@ -376,6 +376,26 @@ void add_skirt(SynthPerson& P, const Landmarks& L, const Eigen::MatrixXd& V0) {
       rb[k] = std::max(rb[k], rb[k - 1]);
     }
   }
+  // The body under the skirt is never seen through cloth: drop its faces (hips and thighs between
+  // the rim and a little above the hem, in the rest pose; kept under the rim, which would show
+  // the background through a gap). Kept, they poke through the tube
+  // wherever a pose swings a thigh further than the skirt's blended skinning follows (a walk's
+  // forward thigh), drawing patches of displaced stripes no garment shows.
+  {
+    const double hide_lo = hem_y + 0.02 * s, hide_hi = top_y - 0.05 * s;
+    auto hidden = [&](int v) {
+      const int l = P.labels[size_t(v)];
+      const bool under = l == kHips || l == kLeftUpperLeg || l == kRightUpperLeg;
+      return under && V0(v, 1) > hide_lo && V0(v, 1) < hide_hi;
+    };
+    Eigen::MatrixXi kept(P.faces.rows(), 3);
+    long nk = 0;
+    for (long f = 0; f < P.faces.rows(); ++f)
+      if (!(hidden(P.faces(f, 0)) && hidden(P.faces(f, 1)) && hidden(P.faces(f, 2))))
+        kept.row(nk++) = P.faces.row(f);
+    P.faces = kept.topRows(nk);
+  }
+
   const long base = P.rest.rows();
   const long nv = long(K + 1) * M;
   Eigen::MatrixXd V(nv, 3), C(nv, 3);

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
+#include "body/parts.hpp"
 #include "core/error.hpp"
 #include "core/fileio.hpp"
 #include "dataset/dataset.hpp"
@@ -115,6 +116,52 @@ TEST(Synth, PersonIsDeterministicClothedAndSkinned) {
   // Rotating about the pelvis keeps distances between vertices.
   EXPECT_NEAR((pm.vertices.row(0) - pm.vertices.row(100)).norm(),
               (p.rest.row(0) - p.rest.row(100)).norm(), 1e-9);
+}
+
+// A skirt hides the hips and thighs it covers: their faces are dropped, so that no pose can push
+// them through the tube; the rest of the body and the skirt itself stay.
+TEST(Synth, SkirtHidesTheBodyItCovers) {
+  SynthOptions o;
+  o.subdivision_levels = 1;
+  const long body_faces = 4 * default_body_model().faces.rows();
+  bool saw_skirt = false, saw_other = false;
+  for (uint64_t seed = 0; seed < 12 && !(saw_skirt && saw_other); ++seed) {
+    const SynthPerson p = make_synth_person(default_model(), "default", seed, o);
+    const long nbody = p.stencil.rows();
+    long nbody_faces = 0, lower_leg_faces = 0, covered_faces = 0;
+    double top = -1e9, hem = 1e9;
+    for (long v = nbody; v < p.rest.rows(); ++v) {
+      top = std::max(top, p.rest(v, 1));
+      hem = std::min(hem, p.rest(v, 1));
+    }
+    auto covered = [&](int v) {
+      const int l = p.labels[size_t(v)];
+      const double y = p.rest(v, 1);
+      return (l == kHips || l == kLeftUpperLeg || l == kRightUpperLeg) && y > hem + 0.04 &&
+             y < top - 0.07;
+    };
+    for (long f = 0; f < p.faces.rows(); ++f) {
+      const Eigen::Vector3i t = p.faces.row(f);
+      if (t.maxCoeff() >= nbody) continue;
+      ++nbody_faces;
+      lower_leg_faces += p.labels[size_t(t[0])] == kLeftLowerLeg;
+      covered_faces += covered(t[0]) && covered(t[1]) && covered(t[2]);
+    }
+    EXPECT_GT(lower_leg_faces, 0);
+    if (p.appearance.bottom_kind == "skirt") {
+      saw_skirt = true;
+      ASSERT_GT(p.rest.rows(), nbody);
+      EXPECT_EQ(covered_faces, 0) << "seed " << seed;
+      EXPECT_LT(nbody_faces, body_faces - 100) << "seed " << seed;
+      EXPECT_EQ(p.faces.rows() - nbody_faces, 2 * 2 * 60 * 160);  // the tube, both sides
+    } else {
+      saw_other = true;
+      EXPECT_EQ(p.rest.rows(), nbody);
+      EXPECT_EQ(nbody_faces, body_faces) << "seed " << seed;
+    }
+  }
+  EXPECT_TRUE(saw_skirt);
+  EXPECT_TRUE(saw_other);
 }
 
 TEST(Synth, KeypointsLandOnThePerson) {
