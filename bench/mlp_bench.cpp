@@ -1,6 +1,7 @@
-// Google Benchmark: the avatar decoders (96 -> 64 -> 64 -> 9 geometry, 96 -> 64 -> 64 -> 3
-// appearance) at the trainer's point counts (template with 1 and 2 Loop levels), forward and
-// forward + backward (with dL/dX, as the trainer calls it), on 1 and 2 OpenMP threads.
+// Google Benchmark: the avatar decoders (96 -> H -> H -> 9 geometry, 96 -> H -> H -> 3
+// appearance; H = 32, the CLI default, or 64) at the trainer's point counts (template with 1 and 2
+// Loop levels), forward and forward + backward (with dL/dX, as the trainer calls it), on 1 and 2
+// OpenMP threads.
 // KS_MLP_NO_AVX2=1 selects the Eigen path.
 #include <benchmark/benchmark.h>
 #include <omp.h>
@@ -16,8 +17,8 @@ struct Fixture {
   ks::MlpCache cache;
   ks::MlpGrads g;
   ks::Mlp::Mat X, Y, dY, dX;
-  Fixture(int out, int n) {
-    m.init({96, 64, 64, out}, 5, 0.5f);
+  Fixture(int out, int n, int hidden) {
+    m.init({96, hidden, hidden, out}, 5, 0.5f);
     std::mt19937 rng(7);
     std::uniform_real_distribution<float> U(-1.f, 1.f);
     X.resize(96, n);
@@ -28,9 +29,9 @@ struct Fixture {
   }
 };
 
-// Args: outputs (9 geometry, 3 appearance), points, threads.
+// Args: outputs (9 geometry, 3 appearance), points, threads, hidden width.
 void BM_Forward(benchmark::State& st) {
-  Fixture f(int(st.range(0)), int(st.range(1)));
+  Fixture f(int(st.range(0)), int(st.range(1)), int(st.range(3)));
   const int saved = omp_get_max_threads();
   omp_set_num_threads(int(st.range(2)));
   ks::mlp_forward(f.m, f.X, f.cache, f.Y);
@@ -44,7 +45,7 @@ void BM_Forward(benchmark::State& st) {
 }
 
 void BM_ForwardBackward(benchmark::State& st) {
-  Fixture f(int(st.range(0)), int(st.range(1)));
+  Fixture f(int(st.range(0)), int(st.range(1)), int(st.range(3)));
   const int saved = omp_get_max_threads();
   omp_set_num_threads(int(st.range(2)));
   ks::mlp_forward(f.m, f.X, f.cache, f.Y);
@@ -61,10 +62,11 @@ void BM_ForwardBackward(benchmark::State& st) {
 }
 
 void Args(benchmark::internal::Benchmark* b) {
-  for (int threads : {1, 2})
-    for (int n : {41346, 165378})
-      for (int out : {9, 3}) b->Args({out, n, threads});
-  b->ArgNames({"out", "n", "threads"});
+  for (int hidden : {32, 64})
+    for (int threads : {1, 2})
+      for (int n : {41346, 165378})
+        for (int out : {9, 3}) b->Args({out, n, threads, hidden});
+  b->ArgNames({"out", "n", "threads", "hidden"});
 }
 
 }  // namespace

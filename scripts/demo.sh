@@ -4,7 +4,7 @@
 # evaluation on 32 held-out frames (8 novel poses x 4 views, at full resolution); a turntable video,
 # a motion video and a rest-pose 3DGS .ply.
 # Usage: scripts/demo.sh [path/to/kinesplat] [output dir]
-# Tunables (environment): KS_DEMO_ITERS (reconstruct steps, 800), KS_DEMO_SUBDIVIDE (template Loop
+# Tunables (environment): KS_DEMO_ITERS (reconstruct steps, 1600), KS_DEMO_SUBDIVIDE (template Loop
 # levels, 2), KS_DEMO_SCALE (training resolution, 1 = the images'), KS_DEMO_SIZE (video size WxH,
 # 384x512), KS_DEMO_MOTION (second video, dance). A quick look (about a minute of training):
 # KS_DEMO_SUBDIVIDE=1 KS_DEMO_SCALE=0.5. Paper-sized setting (an hour or more on 2 cores):
@@ -13,7 +13,7 @@ set -euo pipefail
 
 KS=${1:-build/kinesplat}
 OUT=${2:-demo-out}
-ITERS=${KS_DEMO_ITERS:-800}
+ITERS=${KS_DEMO_ITERS:-1600}
 SUBDIV=${KS_DEMO_SUBDIVIDE:-2}
 TRAIN_SCALE=${KS_DEMO_SCALE:-1}
 SIZE=${KS_DEMO_SIZE:-384x512}
