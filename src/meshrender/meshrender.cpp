@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "mesh/trimesh.hpp"
 
 namespace ks {
 
@@ -162,20 +163,6 @@ void check_input(const Camera& cam, const MeshRenderInput& in, const MeshRenderO
 
 }  // namespace
 
-Eigen::MatrixXd mesh_vertex_normals(const Eigen::MatrixXd& V, const Eigen::MatrixXi& F) {
-  Eigen::MatrixXd N = Eigen::MatrixXd::Zero(V.rows(), 3);
-  for (int f = 0; f < F.rows(); ++f) {
-    const Eigen::Vector3d a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
-    const Eigen::Vector3d n = (b - a).cross(c - a);  // length = 2 * area
-    for (int k = 0; k < 3; ++k) N.row(F(f, k)) += n.transpose();
-  }
-  for (int i = 0; i < N.rows(); ++i) {
-    const double l = N.row(i).norm();
-    if (l > 0) N.row(i) /= l;
-  }
-  return N;
-}
-
 MeshRenderOutput render_mesh(const Camera& cam, const MeshRenderInput& in,
                              const MeshRenderOptions& opt) {
   check_input(cam, in, opt);
@@ -197,7 +184,7 @@ MeshRenderOutput render_mesh(const Camera& cam, const MeshRenderInput& in,
     Eigen::MatrixXd Nw;
     const Eigen::MatrixXd* Np = in.normals;
     if (!Np) {
-      Nw = mesh_vertex_normals(V, F);
+      Nw = vertex_normals(V, F);
       Np = &Nw;
     }
     ncam.resize(size_t(N) * 3);

@@ -69,9 +69,6 @@ struct MeshRenderOutput {
 MeshRenderOutput render_mesh(const Camera& camera, const MeshRenderInput& input,
                              const MeshRenderOptions& options = {});
 
-// Area-weighted unit vertex normals (faces counter-clockwise seen from outside).
-Eigen::MatrixXd mesh_vertex_normals(const Eigen::MatrixXd& V, const Eigen::MatrixXi& F);
-
 // Normal map image: rgb = 0.5 + 0.5 * (nx, -ny, -nz) (x right, y up, z towards the viewer; a
 // surface facing the camera is blue), background where the normal is zero.
 Image normal_to_rgb(const Image& normal, const Eigen::Vector3d& background = {1.0, 1.0, 1.0});

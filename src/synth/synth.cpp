@@ -544,7 +544,7 @@ SynthPerson make_synth_person(std::shared_ptr<const BodyModel> model, const std:
 
   const Eigen::MatrixXd& V0 = sd.mesh.V;
   const long N = V0.rows();
-  const Eigen::MatrixXd normals = mesh_vertex_normals(V0, P.faces);
+  const Eigen::MatrixXd normals = vertex_normals(V0, P.faces);
   const Landmarks L = find_landmarks(V0, P.labels, st.rest_joints);
   P.colors.resize(N, 3);
   P.rest.resize(N, 3);

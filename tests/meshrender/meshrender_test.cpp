@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "core/error.hpp"
+#include "mesh/trimesh.hpp"
 
 namespace ks {
 
@@ -249,7 +250,7 @@ TEST(MeshRender, NormalsLabelsAndLighting) {
   V << -0.5, -0.4, 2.0, -0.5, 0.4, 2.0, 0.5, 0.4, 2.0, 0.5, -0.4, 2.0;
   Eigen::MatrixXi F(2, 3);
   F << 0, 1, 2, 0, 2, 3;
-  const Eigen::MatrixXd n = mesh_vertex_normals(V, F);
+  const Eigen::MatrixXd n = vertex_normals(V, F);
   EXPECT_NEAR(n(0, 2), -1.0, 1e-12);
   std::vector<int> labels = {3, 3, 7, 7};  // left half 3, right half 7
   MeshRenderInput in;
