@@ -167,16 +167,16 @@ void run_animate(const AnimateArgs& args) {
   if (want_cull && !cull_on)
     std::printf(
         "animate: the avatar's template is not one vertex per Gaussian; no back-face culling\n");
+  BackfaceCull cull;
+  cull.normals = &normals;
+  cull.threshold = args.backface_cull;
   Gaussians g;
   RasterResult rr;
   Progress prog("animate", F);
   double render_s = 0;
   for (int f = 0; f < F; ++f) {
     const auto t0 = std::chrono::steady_clock::now();
-    BackfaceCull cull;
-    cull.normals = &normals;
     cull.eye = cams[f].centre();
-    cull.threshold = args.backface_cull;
     pose_avatar(avatar, motion.frames[f], g, cull_on ? &cull : nullptr);
     rasterize_forward(g, cams[f], rs, rr);
     render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -210,10 +210,10 @@ void run_animate(const AnimateArgs& args) {
     std::printf("animate: wrote %d frames%s to %s/\n", F, args.ply ? " (PNG + .ply)" : " (PNG)",
                 args.out.c_str());
   }
-  std::printf(
-      "animate: pose + render %.1f ms per frame (%.1f fps), back-face culling %s\n",
-      1e3 * render_s / F, F / std::max(render_s, 1e-9),
-      cull_on ? ("at cos > " + std::to_string(args.backface_cull).substr(0, 4)).c_str() : "off");
+  char cull_note[32] = "off";
+  if (cull_on) std::snprintf(cull_note, sizeof cull_note, "at cos > %.2f", args.backface_cull);
+  std::printf("animate: pose + render %.1f ms per frame (%.1f fps), back-face culling %s\n",
+              1e3 * render_s / F, F / std::max(render_s, 1e-9), cull_note);
 }
 
 }  // namespace ks::cli

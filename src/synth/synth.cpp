@@ -376,11 +376,11 @@ void add_skirt(SynthPerson& P, const Landmarks& L, const Eigen::MatrixXd& V0) {
       rb[k] = std::max(rb[k], rb[k - 1]);
     }
   }
-  // The body under the skirt is never seen through cloth: drop its faces (hips and thighs between
-  // the rim and a little above the hem, in the rest pose; kept under the rim, which would show
-  // the background through a gap). Kept, they poke through the tube
-  // wherever a pose swings a thigh further than the skirt's blended skinning follows (a walk's
-  // forward thigh), drawing patches of displaced stripes no garment shows.
+  // The body under the skirt is never seen through cloth, so its faces go: hips and thighs from
+  // 5 cm below the rim (nearer the rim a gap would show the background) to 2 cm above the hem,
+  // in the rest pose. Kept, they poke through the tube wherever a pose swings a thigh further
+  // than the skirt's blended skinning follows (a walk's forward thigh), drawing patches of
+  // displaced stripes no garment shows.
   {
     const double hide_lo = hem_y + 0.02 * s, hide_hi = top_y - 0.05 * s;
     auto hidden = [&](int v) {
