@@ -1,13 +1,13 @@
 // Playback posing against the body model's own forward pass.
 #include <gtest/gtest.h>
 
-#include <cmath>
 #include <random>
 
 #include "avatar/from_body.hpp"
 #include "avatar/pose.hpp"
 #include "body/body_model.hpp"
 #include "core/camera.hpp"
+#include "evaluate/metrics.hpp"
 #include "raster/rasterizer.hpp"
 
 namespace ks {
@@ -78,11 +78,7 @@ TEST(AvatarPoseBody, BackfaceCullKeepsTheImage) {
   RasterResult r1, r2;
   rasterize_forward(full, cam, {}, r1);
   rasterize_forward(culled, cam, {}, r2);
-  double se = 0;
-  for (size_t k = 0; k < r1.color.data.size(); ++k)
-    se += double(r1.color.data[k] - r2.color.data[k]) * (r1.color.data[k] - r2.color.data[k]);
-  const double psnr = -10.0 * std::log10(se / double(r1.color.data.size()) + 1e-12);
-  EXPECT_GT(psnr, 35.0) << n_culled << " of " << a.num_gaussians() << " culled";
+  EXPECT_GT(psnr(r1.color, r2.color), 35.0) << n_culled << " of " << a.num_gaussians() << " culled";
 }
 
 }  // namespace
