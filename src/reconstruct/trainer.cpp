@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "body/parts.hpp"
 #include "core/error.hpp"
 #include "core/progress.hpp"
 #include "io/image_io.hpp"
@@ -65,6 +66,25 @@ struct Fit {
   std::vector<float> vcolor;  // 3N per-vertex SH0 residual (opt->lr_vertex_color > 0)
   LearnedSkin skin;           // opt->lr_skin > 0
   bool learn_skin = false;
+  // Skirt skinning (opt->garment): per vertex the membership g (1 for the proxy and the body under
+  // it), g t, g t s and g free (height fraction, side, how freely the cloth hangs:
+  // reconstruct/garment.hpp), carried linearly by the stencil, and the body's own top-4 weights
+  // (for the proxy: its nearest body anchor's), carried like the skin weights; a vertex with
+  // g > 0.5 is skinned by skirt_blend at the current follow.
+  bool garment = false;
+  SkirtJoints garment_joints;
+  std::vector<float> g_in, g_t, g_ts, g_free;
+  std::vector<int> g_bj;
+  std::vector<float> g_bw;
+  void set_garment_weights(double follow) {
+    for (int i = 0; i < state.num_vertices(); ++i) {
+      const float g = g_in[size_t(i)];
+      if (!(g > 0.5f)) continue;
+      skirt_blend(garment_joints, follow, g_t[size_t(i)] / g, g_ts[size_t(i)] / g,
+                  g_free[size_t(i)] / g, &g_bj[4 * size_t(i)], &g_bw[4 * size_t(i)],
+                  &state.skin_joints[4 * size_t(i)], &state.skin_weights[4 * size_t(i)]);
+    }
+  }
   bool resized = false;
 
   void rebuild() {
@@ -93,6 +113,13 @@ struct Fit {
       f->vcolor.assign(now.data(), now.data() + now.size());
     }
     if (f->learn_skin) f->skin.remap(stencil);
+    if (f->garment) remap_top4(stencil, f->g_bj, f->g_bw);
+    if (f->garment)
+      for (std::vector<float>* a : {&f->g_in, &f->g_t, &f->g_ts, &f->g_free}) {
+        Eigen::Map<const Eigen::VectorXf> old(a->data(), stencil.cols());
+        const Eigen::VectorXf now = (stencil * old.cast<double>()).cast<float>();
+        a->assign(now.data(), now.data() + now.size());
+      }
     f->rebuild();
     f->resized = true;
   }
@@ -149,6 +176,118 @@ struct Decoder {
     }
   }
 };
+
+// The skirt proxy (reconstruct/garment.hpp): detects (GarmentMode::kAuto), builds it around the
+// template, re-skins the body anchors it encloses and appends it to the template as a separate
+// component. Its vertices have no body-model source (no pose correctives), part label hips, and a
+// log-scale bias for their wider spacing.
+void add_garment(const BodyModel& model, const BodyState& rest_state,
+                 const std::vector<TrainFrame>& frames, const TrainOptions& opt, Fit& fit,
+                 std::string& summary, int& added) {
+  TrainerState& st = fit.state;
+  const SkirtJoints joints = skirt_joints(model);
+  SkirtOptions so = opt.skirt;
+  if (opt.garment == GarmentMode::kAuto) {
+    std::vector<SkirtView> views(frames.size());
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const BodyState bs = body_forward(model, frames[i].pose);
+      views[i].mask = &frames[i].mask;
+      views[i].camera = &frames[i].camera;
+      views[i].joints = bs.joints;
+      views[i].forward = bs.transforms[0].block<3, 3>(0, 0) * Eigen::Vector3d::UnitZ();
+      views[i].body_vertices = bs.vertices;
+      views[i].body_faces = &model.faces;
+      if (int(model.part_labels.size()) == model.num_vertices())
+        views[i].body_labels = &model.part_labels;
+    }
+    const SkirtDetection d = detect_skirt(views, joints);
+    summary = d.summary;
+    if (!d.skirt) return;
+    so.hem = d.hem;
+    if (opt.garment_fit_width) so.half_width = d.half_width;
+  }
+  const int n0 = st.num_vertices();
+  const double edge = mean_edge_length(st.anchors, st.faces);
+  const SkirtProxy P =
+      make_skirt_proxy(st.anchors, st.part_labels, rest_state.rest_joints, joints, edge, so);
+  const int np = int(P.V.rows());
+  fit.garment = true;
+  fit.garment_joints = joints;
+  fit.g_in.assign(size_t(n0 + np), 0.f);
+  fit.g_t.assign(size_t(n0 + np), 0.f);
+  fit.g_ts.assign(size_t(n0 + np), 0.f);
+  fit.g_free.assign(size_t(n0 + np), 0.f);
+  fit.g_bj.assign(st.skin_joints.begin(), st.skin_joints.end());
+  fit.g_bw = st.skin_weights;
+  fit.g_bj.resize(4 * size_t(n0 + np), 0);
+  fit.g_bw.resize(4 * size_t(n0 + np), 0.f);
+  // The proxy's body weights: its nearest hip, torso or thigh anchor's (anchors sorted by height,
+  // searched in a window around each ring).
+  std::vector<int> cand;
+  for (int i = 0; i < n0; ++i) {
+    const int l = st.part_labels[size_t(i)];
+    if (l == kHips || l == kTorso || l == kLeftUpperLeg || l == kRightUpperLeg) cand.push_back(i);
+  }
+  std::sort(cand.begin(), cand.end(),
+            [&](int x, int y) { return st.anchors(x, 1) < st.anchors(y, 1); });
+  int reskinned = 0;
+  for (int i = 0; i < n0 + np; ++i) {
+    const Eigen::Vector3d p = i < n0 ? Eigen::Vector3d(st.anchors.row(i).transpose())
+                                     : Eigen::Vector3d(P.V.row(i - n0).transpose());
+    if (i < n0 && !skirt_encloses(P, p, st.part_labels[size_t(i)])) continue;
+    reskinned += i < n0;
+    double t, side;
+    skirt_coords(P, p, &t, &side);
+    fit.g_in[size_t(i)] = 1.f;
+    fit.g_t[size_t(i)] = float(t);
+    fit.g_ts[size_t(i)] = float(t * side);
+    fit.g_free[size_t(i)] = float(skirt_free(P, p.y()));
+    if (i < n0 || cand.empty()) continue;
+    double best = 1e30;
+    int bi = cand.front();
+    for (double win = 0.02; best > 1e29 || win < 0.1; win *= 2) {
+      auto lo = std::lower_bound(cand.begin(), cand.end(), p.y() - win,
+                                 [&](int c, double y) { return st.anchors(c, 1) < y; });
+      for (auto it = lo; it != cand.end() && st.anchors(*it, 1) <= p.y() + win; ++it) {
+        const double d2 = (st.anchors.row(*it).transpose() - p).squaredNorm();
+        if (d2 < best) best = d2, bi = *it;
+      }
+      if (best < win * win || win > 1.0) break;
+    }
+    for (int k = 0; k < 4; ++k) {
+      fit.g_bj[4 * size_t(i) + k] = st.skin_joints[4 * size_t(bi) + k];
+      fit.g_bw[4 * size_t(i) + k] = st.skin_weights[4 * size_t(bi) + k];
+    }
+  }
+  st.anchors.conservativeResize(n0 + np, 3);
+  st.anchors.bottomRows(np) = P.V;
+  const long f0 = st.faces.rows();
+  st.faces.conservativeResize(f0 + P.F.rows(), 3);
+  st.faces.bottomRows(P.F.rows()) = P.F.array() + n0;
+  st.part_labels.resize(size_t(n0 + np), kHips);
+  st.skin_joints.resize(4 * size_t(n0 + np), 0);
+  st.skin_weights.resize(4 * size_t(n0 + np), 0.f);
+  fit.set_garment_weights(so.follow);
+  st.log_scale_bias.resize(size_t(n0 + np), float(std::log(P.spacing / edge)));
+  // Body-model stencil: no source vertices for the proxy (zero rows).
+  SpMat S(n0 + np, fit.S.cols());
+  std::vector<Eigen::Triplet<double>> trip;
+  for (int r = 0; r < fit.S.outerSize(); ++r)
+    for (SpMat::InnerIterator itr(fit.S, r); itr; ++itr)
+      trip.emplace_back(r, int(itr.col()), itr.value());
+  S.setFromTriplets(trip.begin(), trip.end());
+  fit.S = std::move(S);
+  added = np;
+  int contact = 0;
+  while (contact < P.rings && P.ring_free[size_t(contact)] < 0.5) ++contact;
+  char buf[240];
+  std::snprintf(buf, sizeof buf,
+                "%sgarment: skirt proxy of %d vertices (%d rings x %d), hem %.2f of hips-to-knees, "
+                "on the body (free < 0.5) for %.1f cm below the rim, %d body anchors re-skinned",
+                summary.empty() ? "" : "; ", np, P.rings, P.segments, so.hem,
+                100.0 * (P.top_y - P.hem_y) * contact / std::max(1, P.rings - 1), reskinned);
+  summary += buf;
+}
 
 }  // namespace
 
@@ -258,19 +397,39 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
     std::vector<int32_t> sj;
     top_k_skin_weights(W, 4, sj, st.skin_weights);
     st.skin_joints.assign(sj.begin(), sj.end());
-    if (opt.lr_skin > 0) {
-      fit.skin.init(W, model.parents, opt.skin_candidates);
-      fit.learn_skin = true;
-    }
     if (int(model.part_labels.size()) == model.num_vertices())
       st.part_labels = carry_labels(fit.S, model.part_labels);
     else
       st.part_labels.assign(n0, 0);
   }
   st.log_scale_bias.assign(n0, 0.f);
-  st.grad2d_accum.assign(n0, 0.f);
-  st.grad2d_count.assign(n0, 0);
-  st.max_radius.assign(n0, 0);
+  std::string garment_summary;
+  int garment_vertices = 0;
+  if (opt.garment != GarmentMode::kNone) {
+    add_garment(model, rest_state, frames, opt, fit, garment_summary, garment_vertices);
+    if (opt.progress && !garment_summary.empty())
+      std::fprintf(stderr, "%s\n", garment_summary.c_str());
+  }
+  if (opt.lr_skin > 0) {
+    // Dense weights for the candidates and the prior: the body's (through the subdivision
+    // stencil); the garment's vertices (the proxy and the body under it) take their top-4 skirt
+    // weights.
+    const int nv = st.num_vertices();
+    Eigen::MatrixXd W = Eigen::MatrixXd::Zero(nv, model.num_joints());
+    W.topRows(n0) = fit.S.topRows(n0) * model.weights;
+    for (int i = 0; i < nv; ++i) {
+      if (!(fit.garment && fit.g_in[size_t(i)] > 0.5f)) continue;
+      W.row(i).setZero();
+      for (int k = 0; k < 4; ++k)
+        W(i, st.skin_joints[4 * size_t(i) + k]) += st.skin_weights[4 * size_t(i) + k];
+    }
+    fit.skin.init(W, model.parents, opt.skin_candidates);
+    fit.learn_skin = true;
+  }
+  const int nv0 = st.num_vertices();
+  st.grad2d_accum.assign(nv0, 0.f);
+  st.grad2d_count.assign(nv0, 0);
+  st.max_radius.assign(nv0, 0);
   st.total_iterations = opt.iterations;
   st.on_resize = &Fit::on_resize;
   st.on_resize_ctx = &fit;
@@ -332,11 +491,23 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
   adam.add_group("appearance_mlp", &app_params, opt.lr_mlp);
   int vcolor_group = -1;
   if (opt.lr_vertex_color > 0) {
-    fit.vcolor.assign(3 * size_t(n0), 0.f);
+    fit.vcolor.assign(3 * size_t(st.num_vertices()), 0.f);
     vcolor_group = adam.add_group("vertex_color", &fit.vcolor, opt.lr_vertex_color);
   }
   int skin_group = -1;
   if (fit.learn_skin) skin_group = adam.add_group("skin_logits", &fit.skin.logits, opt.lr_skin);
+  // The skirt's follow in logit units (learned when lr_garment_follow > 0 and the skin weights are
+  // not learned per Gaussian).
+  std::vector<float> follow_logit(1, 0.f), follow_grad(1, 0.f);
+  {
+    const double f0 = std::clamp(double(opt.skirt.follow), 1e-3, 1.0 - 1e-3);
+    follow_logit[0] = float(std::log(f0 / (1.0 - f0)));
+  }
+  const bool learn_follow = fit.garment && opt.lr_garment_follow > 0 && !fit.learn_skin;
+  int follow_group = -1;
+  if (learn_follow)
+    follow_group = adam.add_group("garment_follow", &follow_logit, opt.lr_garment_follow);
+  auto follow_value = [&] { return 1.0 / (1.0 + std::exp(-double(follow_logit[0]))); };
   const int skin_start =
       std::clamp(int(std::lround(double(opt.skin_from) * opt.iterations)), 0, opt.iterations);
   const int num_joints = model.num_joints();
@@ -389,6 +560,7 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
         for (int k = 0; k < 3; ++k) pose_off[3 * size_t(i) + k] = float(po(i, k));
     }
     if (fit.learn_skin) fit.skin.weights(skin_w);
+    if (learn_follow) fit.set_garment_weights(follow_value());
     lbs_forward(canon, pose_off, fit.learn_skin ? fit.skin.joints : st.skin_joints,
                 fit.learn_skin ? skin_w : st.skin_weights, bs.transforms, posed, lbs_cache);
     rasterize_forward(posed, fr.camera, rs, rr);
@@ -417,6 +589,15 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
 
     rasterize_backward(posed, fr.camera, rs, rr, dcolor, dalpha, rg);
     lbs_backward(lbs_cache, rg.means, rg.quats, dmeans_c, dquats_c);
+    if (learn_follow) {
+      // d loss / d follow through the posed means (reconstruct/garment.hpp), then the sigmoid.
+      xcanon.resize(3 * size_t(n));
+      for (size_t q = 0; q < 3 * size_t(n); ++q) xcanon[q] = canon.means[q] + pose_off[q];
+      const double df = skirt_follow_gradient(fit.garment_joints, fit.g_in, fit.g_t, fit.g_ts,
+                                              fit.g_free, bs.transforms, xcanon, rg.means);
+      const double f = follow_value();
+      follow_grad[0] = float(df * f * (1.0 - f));
+    }
 
     // Regularisers on offsets and colours.
     doff.assign(3 * size_t(n), 0.f);
@@ -497,6 +678,7 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       std::vector<const std::vector<float>*> grads = {&dplanes, &geo_grad, &app_grad};
       if (vcolor_group >= 0) grads.push_back(&dsh);
       if (skin_group >= 0) grads.push_back(&skin_dl);
+      if (follow_group >= 0) grads.push_back(&follow_grad);
       adam.step(grads);
     }
 
@@ -533,10 +715,12 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       progress.update(it + 1, buf);
     }
     if (opt.log_every > 0 && (it % opt.log_every == 0 || it + 1 == opt.iterations))
-      std::fprintf(stderr, "it %d loss %.5f l1 %.4f ssim %.4f mask %.4f psnr %.2f\n", it, loss, l1,
-                   ss, lmask, psnr);
+      std::fprintf(stderr, "it %d loss %.5f l1 %.4f ssim %.4f mask %.4f psnr %.2f%s\n", it, loss,
+                   l1, ss, lmask, psnr,
+                   fit.garment ? (" follow " + std::to_string(follow_value())).c_str() : "");
   }
   if (opt.progress) progress.finish();
+  if (learn_follow) fit.set_garment_weights(follow_value());
 
   // Bake the final canonical attributes.
   dec.geo.unpack(geo_params);
@@ -595,6 +779,8 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
                                                                : "none"},
       {"perturb", opt.perturb.enabled},
       {"learned_skin", fit.learn_skin},
+      {"garment", garment_vertices > 0 ? "skirt" : "none"},
+      {"garment_follow", fit.garment ? follow_value() : 0.0},
       {"seed", opt.seed},
       {"frames", frames.size()},
   };
@@ -605,6 +791,10 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
     report->final_loss = last_loss;
     report->final_psnr = float(psnr_ema);
     report->num_gaussians = n;
+    report->garment = garment_vertices > 0;
+    report->garment_vertices = garment_vertices;
+    report->garment_summary = garment_summary;
+    report->garment_follow = fit.garment ? float(follow_value()) : 0.f;
   }
   return av;
 }

@@ -18,6 +18,7 @@
 #include "core/image.hpp"
 #include "dataset/dataset.hpp"
 #include "reconstruct/density.hpp"
+#include "reconstruct/garment.hpp"
 #include "reconstruct/losses.hpp"
 
 namespace ks {
@@ -33,6 +34,8 @@ struct PerturbOptions {
 };
 
 struct TrainFrame;
+
+enum class GarmentMode { kNone, kSkirt, kAuto };
 
 struct TrainOptions {
   int iterations = 2000;
@@ -62,6 +65,15 @@ struct TrainOptions {
   int skin_candidates = 8;
   float skin_from = 0.f;
   float w_skin_prior = 0.1f, w_lap_skin = 1.0f;
+  // Garment layer (reconstruct/garment.hpp): kSkirt adds the skirt proxy with `skirt`'s hem;
+  // kAuto adds it when detect_skirt finds one in the training masks, with the detected hem.
+  GarmentMode garment = GarmentMode::kNone;
+  SkirtOptions skirt;
+  // Learns the skirt's `follow` (one number, in logit units; 0 = fixed at skirt.follow) from the
+  // image gradient through the skinned means of the proxy and the body under it.
+  float lr_garment_follow = 0.f;
+  // kAuto: widen the proxy's rings to the skirt's measured width (detect_skirt's half_width).
+  bool garment_fit_width = true;
   float scale_factor = 0.6f;   // initial scale = scale_factor * mean template edge length
   float init_opacity = 0.95f;  // initial opacity
   // 3D smoothing filter (as Mip-Splatting's): every Gaussian's variance gets filter3d * p^2 added,
@@ -117,6 +129,10 @@ struct TrainReport {
   float final_loss = 0;
   float final_psnr = 0;  // PSNR of the last few training iterations' renders (training frames)
   int num_gaussians = 0;
+  bool garment = false;         // the skirt proxy was added
+  int garment_vertices = 0;     // its vertices (before density control)
+  std::string garment_summary;  // detection / proxy line (empty with GarmentMode::kNone)
+  float garment_follow = 0;     // the skirt's follow at the end (learned or fixed)
 };
 
 // Fits an avatar to a dataset (frames already loaded with load_training_frames). The result is
