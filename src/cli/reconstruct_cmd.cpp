@@ -21,7 +21,8 @@
 namespace {
 
 struct Args {
-  std::string dataset, out, laplacian = "semantic", density = "off", eval_dataset, eval_out;
+  std::string dataset, out, laplacian = "semantic", density = "off", garment = "auto", eval_dataset,
+                            eval_out;
   ks::TrainOptions opt;
   bool perturb = false, quiet = false;
   float eval_scale = 1.f, fine_scale = 1.f;
@@ -42,6 +43,9 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   args->opt.scale = 1.f;
   args->opt.fine_from = 1.f;
   args->opt.lr_vertex_color = 0.05f;
+  // The garment layer (our extension, reconstruct/garment.hpp): a skirt proxy when the masks show
+  // cloth spanning the legs, its follow learned. Subjects without one train exactly as before.
+  args->opt.lr_garment_follow = 0.05f;
   auto* sub = app.add_subcommand("reconstruct", "Fit an animatable Gaussian avatar to a dataset");
   sub->add_option("dataset", args->dataset, "Dataset directory (dataset.json + images)")
       ->required();
@@ -63,6 +67,28 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   sub->add_option("--laplacian", args->laplacian, "Laplacian regulariser: semantic|uniform|none")
       ->capture_default_str();
   sub->add_option("--density", args->density, "Density control: gpdc|vertex|naive|off")
+      ->capture_default_str();
+  sub->add_option("--garment", args->garment,
+                  "Garment layer: none|skirt|auto (auto: a skirt proxy when the masks show cloth "
+                  "spanning the legs)")
+      ->capture_default_str();
+  sub->add_option("--garment-hem", args->opt.skirt.hem,
+                  "Skirt hem (--garment skirt): fraction of the way from hips to knees")
+      ->capture_default_str();
+  sub->add_option("--garment-follow", args->opt.skirt.follow,
+                  "How much the skirt's hem follows the legs (0 = pelvis only)")
+      ->capture_default_str();
+  sub->add_option("--garment-spacing", args->opt.skirt.spacing,
+                  "Metres between the skirt proxy's vertices (0 = 1.25 x the template's mean edge)")
+      ->capture_default_str();
+  sub->add_option("--garment-wrap", args->opt.skirt.wrap,
+                  "Blend the body's skinning into the skirt's above the crotch (0/1)")
+      ->capture_default_str();
+  sub->add_option("--garment-fit-width", args->opt.garment_fit_width,
+                  "--garment auto: widen the skirt proxy to the width the masks show (0/1)")
+      ->capture_default_str();
+  sub->add_option("--lr-garment-follow", args->opt.lr_garment_follow,
+                  "Learning rate of the skirt's follow (logit units; 0 = fixed)")
       ->capture_default_str();
   sub->add_flag("--perturb", args->perturb,
                 "Imperfect prior: colour drift, pose jitter and small warps per frame");
@@ -113,6 +139,14 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
     Args& a = *args;
     a.opt.laplacian = ks::parse_laplacian_mode(a.laplacian);
     a.opt.perturb.enabled = a.perturb;
+    if (a.garment == "none")
+      a.opt.garment = ks::GarmentMode::kNone;
+    else if (a.garment == "skirt")
+      a.opt.garment = ks::GarmentMode::kSkirt;
+    else if (a.garment == "auto")
+      a.opt.garment = ks::GarmentMode::kAuto;
+    else
+      throw ks::Error("--garment " + a.garment + ": expected none, skirt or auto");
     a.opt.progress = !a.quiet;
 #ifndef KS_HAVE_DENSITY_FACTORY
     if (a.density != "off")
@@ -142,6 +176,9 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
     ks::TrainReport rep;
     ks::Avatar av = ks::train_avatar(model, ds, frames, a.opt, &rep);
     av.metadata["density"] = a.density;
+    if (!rep.garment_summary.empty())
+      std::printf("%s%s\n", rep.garment_summary.c_str(),
+                  rep.garment ? ("; follow " + std::to_string(rep.garment_follow)).c_str() : "");
     av.metadata["fine_scale"] = a.opt.fine_from < 1.f ? a.fine_scale : a.opt.scale;
     ks::save_avatar(a.out, av);
     std::printf("avatar: %s (%d Gaussians)\n", a.out.c_str(), av.num_gaussians());
