@@ -424,9 +424,14 @@ SkirtDetection detect_skirt(const std::vector<SkirtView>& views, const SkirtJoin
       body.p.resize(size_t(v.body_vertices.rows()));
       // Clothed: every vertex moved out along its normal by the cloth allowance, so that
       // trousers, whose legs close the gap between the thighs sooner, are not taken for a skirt.
+      // One mask pixel more (at the pelvis' depth): a gap the mask's resolution cannot show
+      // is not evidence of cloth.
+      const double px_m =
+          cam.to_camera(pel).z() / (cam.fx * double(m.width) / std::max(1, cam.width));
+      const double grow = cloth + 1.0 * px_m;
       const Eigen::MatrixXd N = vertex_normals(v.body_vertices, *v.body_faces);
       for (long i = 0; i < v.body_vertices.rows(); ++i)
-        body.p[size_t(i)] = cam.project((v.body_vertices.row(i) + cloth * N.row(i)).transpose());
+        body.p[size_t(i)] = cam.project((v.body_vertices.row(i) + grow * N.row(i)).transpose());
     }
     // How far down the line from the hips' midpoint (u = 0) to the knees' (u = 1) the mask, and
     // the body, stay filled.

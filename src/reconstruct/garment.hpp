@@ -142,7 +142,8 @@ struct SkirtDetection {
 
 // margin: a skirt when, in the median front/back view, the mask fills the line between the legs
 // further than the body's own silhouette does by at least this fraction of hips-to-knees.
-// cloth: metres the body is inflated by (along its vertex normals) for its silhouette.
+// cloth: metres the body is inflated by (along its vertex normals) for its silhouette, plus one
+// mask pixel at the pelvis' depth (a gap narrower than that does not show in the mask).
 SkirtDetection detect_skirt(const std::vector<SkirtView>& views, const SkirtJoints& joints,
                             double margin = 0.2, double cloth = 0.015);
 

@@ -103,6 +103,22 @@ TEST(ReconstructCli, TrainsSavesAndEvaluates) {
               " --laplacian cotan --iters 1");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("cotan"), std::string::npos);
+  r = run_cli("reconstruct " + (dir / "data").string() + " --out " + av +
+              " --garment sarong --iters 1");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("expected none, skirt or auto"), std::string::npos) << r.output;
+  {
+    // The garment layer on request: the skirt proxy joins the template.
+    const std::string av3 = (dir / "skirt.ksavatar").string();
+    test::CliRun r3 = run_cli("reconstruct " + (dir / "data").string() + " --out " + av3 +
+                              " --garment skirt --iters 2 --subdivide 0 --triplane-res 16 "
+                              "--hidden 8 -q");
+    ASSERT_EQ(r3.status, 0) << r3.output;
+    EXPECT_NE(r3.output.find("skirt proxy of"), std::string::npos) << r3.output;
+    const Avatar s3 = load_avatar(av3);
+    EXPECT_GT(s3.num_gaussians(), default_body_model().num_vertices());
+    EXPECT_EQ(s3.metadata.value("garment", ""), "skirt");
+  }
   fs::remove_all(dir);
 }
 
