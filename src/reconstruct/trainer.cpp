@@ -278,15 +278,17 @@ void add_garment(const BodyModel& model, const BodyState& rest_state,
   S.setFromTriplets(trip.begin(), trip.end());
   fit.S = std::move(S);
   added = np;
-  int contact = 0;
-  while (contact < P.rings && P.ring_free[size_t(contact)] < 0.5) ++contact;
   char buf[240];
   std::snprintf(buf, sizeof buf,
                 "%sgarment: skirt proxy of %d vertices (%d rings x %d), hem %.2f of hips-to-knees, "
-                "on the body (free < 0.5) for %.1f cm below the rim, %d body anchors re-skinned",
-                summary.empty() ? "" : "; ", np, P.rings, P.segments, so.hem,
-                100.0 * (P.top_y - P.hem_y) * contact / std::max(1, P.rings - 1), reskinned);
+                "%d body anchors re-skinned",
+                summary.empty() ? "" : "; ", np, P.rings, P.segments, so.hem, reskinned);
   summary += buf;
+  if (so.wrap) {
+    std::snprintf(buf, sizeof buf, ", wrapping the hips for %.1f cm below the rim",
+                  100.0 * (P.top_y - P.crotch_y));
+    summary += buf;
+  }
 }
 
 }  // namespace

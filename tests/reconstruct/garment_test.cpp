@@ -477,6 +477,9 @@ TEST(Garment, TrainerLearnsTheFollowFromSwingingLegs) {
   const Avatar a = train_avatar(model, ds, frames, o, &rep);
   EXPECT_NO_THROW(a.validate());
   EXPECT_TRUE(rep.garment);
+  const std::string& sum = rep.garment_summary;  // one line, the proxy named once
+  ASSERT_NE(sum.find("skirt proxy of"), std::string::npos) << sum;
+  EXPECT_EQ(sum.find("skirt proxy of", sum.find("skirt proxy of") + 1), std::string::npos) << sum;
   EXPECT_GT(rep.garment_follow, 0.5f) << "started at 0.3, truth 0.9";
   EXPECT_NEAR(a.metadata.value("garment_follow", 0.0), rep.garment_follow, 1e-6);
   // Fixed (no learning rate): stays where it started.
