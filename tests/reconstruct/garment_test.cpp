@@ -48,6 +48,14 @@ bool under_skirt(int l) {
   return l == kHips || l == kLeftUpperLeg || l == kRightUpperLeg;
 }
 
+// The proxy around the default body at rest.
+SkirtProxy default_proxy(const RestBody& rb, const SkirtOptions& so) {
+  const BodyModel& model = default_body_model();
+  const Eigen::MatrixXd& V = rb.state.rest_vertices;
+  return make_skirt_proxy(V, rb.labels, rb.state.rest_joints, skirt_joints(model),
+                          mean_edge(V, model.faces), so);
+}
+
 }  // namespace
 
 TEST(Garment, ProxyEnclosesHipsAndThighsAndHangs) {
@@ -57,8 +65,7 @@ TEST(Garment, ProxyEnclosesHipsAndThighsAndHangs) {
   SkirtOptions so;
   so.hem = 0.8;
   const Eigen::MatrixXd& V = rb.state.rest_vertices;
-  const SkirtProxy P =
-      make_skirt_proxy(V, rb.labels, rb.state.rest_joints, J, mean_edge(V, model.faces), so);
+  const SkirtProxy P = default_proxy(rb, so);
   ASSERT_GE(P.rings, 3);
   ASSERT_EQ(P.V.rows(), long(P.rings) * P.segments);
   EXPECT_NEAR(P.top_y, rb.state.rest_joints(J.pelvis, 1), 1e-12);
@@ -107,15 +114,12 @@ TEST(Garment, ProxyWidensToAMeasuredWidth) {
   const BodyModel& model = default_body_model();
   const RestBody rb = rest_body(model);
   const SkirtJoints J = skirt_joints(model);
-  const Eigen::MatrixXd& V = rb.state.rest_vertices;
   SkirtOptions so;
   so.hem = 0.8;
-  const SkirtProxy P0 =
-      make_skirt_proxy(V, rb.labels, rb.state.rest_joints, J, mean_edge(V, model.faces), so);
+  const SkirtProxy P0 = default_proxy(rb, so);
   so.half_width.assign(65, 0.0);
   for (int s = 32; s < 65; ++s) so.half_width[size_t(s)] = 0.4;  // wide from halfway down
-  const SkirtProxy P1 =
-      make_skirt_proxy(V, rb.labels, rb.state.rest_joints, J, mean_edge(V, model.faces), so);
+  const SkirtProxy P1 = default_proxy(rb, so);
   ASSERT_EQ(P0.rings, P1.rings);
   const double hip_y =
       0.5 * (rb.state.rest_joints(J.left_hip, 1) + rb.state.rest_joints(J.right_hip, 1));
@@ -143,8 +147,7 @@ TEST(Garment, SkinningRunsFromPelvisAtTheRimToTheLegsAtTheHem) {
   SkirtOptions so;
   so.follow = 0.6;
   const Eigen::MatrixXd& V = rb.state.rest_vertices;
-  const SkirtProxy P =
-      make_skirt_proxy(V, rb.labels, rb.state.rest_joints, J, mean_edge(V, model.faces), so);
+  const SkirtProxy P = default_proxy(rb, so);
   const int M = P.segments, last = (P.rings - 1) * M;
   auto weight = [&](long v, int joint) {
     float w = 0;
@@ -300,14 +303,10 @@ TEST(Garment, BlendFreeAndRemap) {
   // crotch, never decreasing downwards.
   const BodyModel& model = default_body_model();
   const RestBody rb = rest_body(model);
-  const Eigen::MatrixXd& V = rb.state.rest_vertices;
   SkirtOptions so;
-  const SkirtProxy P1 = make_skirt_proxy(V, rb.labels, rb.state.rest_joints, skirt_joints(model),
-                                         mean_edge(V, model.faces), so);
-  for (double f : P1.ring_free) EXPECT_EQ(f, 1.0);
+  for (double f : default_proxy(rb, so).ring_free) EXPECT_EQ(f, 1.0);
   so.wrap = true;
-  const SkirtProxy P = make_skirt_proxy(V, rb.labels, rb.state.rest_joints, skirt_joints(model),
-                                        mean_edge(V, model.faces), so);
+  const SkirtProxy P = default_proxy(rb, so);
   ASSERT_EQ(int(P.ring_free.size()), P.rings);
   EXPECT_NEAR(P.ring_free.front(), 0.0, 1e-9);
   EXPECT_NEAR(P.ring_free.back(), 1.0, 1e-9);
@@ -443,13 +442,7 @@ TEST(Garment, TrainerLearnsTheFollowFromSwingingLegs) {
   opt.skirt.hem = 0.9;
   opt.skirt.follow = 0.9;
   Avatar truth = test::one_step_avatar(model, ds, opt);
-  for (int i = 0; i < truth.num_gaussians(); ++i) {
-    const float y = truth.gaussians.means[3 * size_t(i) + 1];
-    truth.gaussians.sh[3 * size_t(i)] = 1.2f * std::sin(30.f * y);
-    truth.gaussians.sh[3 * size_t(i) + 1] = -0.5f;
-    truth.gaussians.sh[3 * size_t(i) + 2] = 1.0f * std::cos(20.f * y);
-    truth.gaussians.opacity_logits[i] = 4.f;
-  }
+  test::paint_by_height(truth, 30.f, -0.5f, 20.f);
   std::vector<TrainFrame> frames;
   RasterSettings rs;
   for (int k = 0; k < 3; ++k) rs.background[k] = ds.background[k];

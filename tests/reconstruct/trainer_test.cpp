@@ -59,13 +59,7 @@ TEST(Trainer, FitsTinyRenderedPerson) {
   opt.iterations = 60;
   // The "truth": a short fit's own structure with colours painted by height.
   Avatar truth = test::one_step_avatar(model, ds, opt);
-  for (int i = 0; i < truth.num_gaussians(); ++i) {
-    const float y = truth.gaussians.means[3 * size_t(i) + 1];
-    truth.gaussians.sh[3 * size_t(i)] = 1.2f * std::sin(4.f * y);
-    truth.gaussians.sh[3 * size_t(i) + 1] = -0.8f;
-    truth.gaussians.sh[3 * size_t(i) + 2] = 1.0f * std::cos(3.f * y);
-    truth.gaussians.opacity_logits[i] = 4.f;
-  }
+  test::paint_by_height(truth, 4.f, -0.8f, 3.f);
   const auto frames = make_frames(model, ds, truth, 4);
   TrainReport rep;
   opt.iterations = 1;
@@ -140,12 +134,8 @@ TEST(Trainer, LearnedSkinWeightsFollowSkinningTheBodyCannot) {
   Avatar truth = test::one_step_avatar(model, ds, opt);
   const int collar = 13;
   int moved = 0;
+  test::paint_by_height(truth, 8.f, -0.5f, 6.f);
   for (int i = 0; i < truth.num_gaussians(); ++i) {
-    const float y = truth.gaussians.means[3 * size_t(i) + 1];
-    truth.gaussians.sh[3 * size_t(i)] = 1.2f * std::sin(8.f * y);
-    truth.gaussians.sh[3 * size_t(i) + 1] = -0.5f;
-    truth.gaussians.sh[3 * size_t(i) + 2] = 1.0f * std::cos(6.f * y);
-    truth.gaussians.opacity_logits[i] = 4.f;
     if (truth.part_labels[size_t(i)] == kLeftUpperArm) {
       for (int k = 0; k < 4; ++k) {
         truth.skin_joints[4 * size_t(i) + k] = k == 0 ? collar : 0;
