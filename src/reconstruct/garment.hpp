@@ -12,11 +12,13 @@
 // normalised x across the ellipse: 1 = the body's left):
 //   w = (1 - follow t) pelvis + follow t (s left_hip + (1 - s) right_hip)
 // The body's own hip and thigh anchors inside the tube are re-skinned the same way, so that no
-// thigh pokes through the cloth in a pose the training frames never showed.
+// thigh pokes through the cloth in a pose the training frames never showed. The trainer learns
+// `follow` (one number) from the image gradient (skirt_follow_gradient).
 //
 // Detection (`detect_skirt`): in the training frames seen from the front or back, the mask is
 // followed down the line between the legs (hip joints' midpoint to knees' midpoint); where it
 // stays filled well below the point where the body's own legs part, something spans the legs.
+// The same scans measure the hem and the skirt's width, to which the proxy's rings are widened.
 // Documented in docs/reconstruct.md ("Garment layer").
 #include <Eigen/Core>
 #include <Eigen/Geometry>
