@@ -18,6 +18,13 @@
 
 namespace ks {
 
+// Top-4 skinning through a density-control stencil (new r = sum_s S_rs old s): weights summed per
+// joint, the 4 largest kept, renormalised (rows with nothing positive: joint 0, weight 0).
+// joints / weights: 4 per old vertex, replaced by 4 per new vertex. Throws ks::Error on a size
+// mismatch. TrainerState::apply_stencil remaps its skin weights with it.
+void remap_top4(const Eigen::SparseMatrix<double, Eigen::RowMajor>& S, std::vector<int>& joints,
+                std::vector<float>& weights);
+
 struct TrainerState {
   int iteration = 0;  // the iteration that just finished (0-based)
   int total_iterations = 0;

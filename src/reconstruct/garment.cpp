@@ -258,41 +258,6 @@ void skirt_blend(const SkirtJoints& joints, double follow, double t, double ts, 
   if (!(sum > 0)) w4[0] = 1.f;
 }
 
-void remap_top4(const Eigen::SparseMatrix<double, Eigen::RowMajor>& S, std::vector<int>& joints,
-                std::vector<float>& weights) {
-  if (joints.size() != 4 * size_t(S.cols()) || weights.size() != joints.size())
-    throw Error("remap_top4: 4 joints and weights per source vertex needed");
-  std::vector<int> nj(4 * size_t(S.rows()), 0);
-  std::vector<float> nw(4 * size_t(S.rows()), 0.f);
-  std::vector<std::pair<int, double>> acc;
-  for (int r = 0; r < S.rows(); ++r) {
-    acc.clear();
-    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(S, r); it; ++it)
-      for (int k = 0; k < 4; ++k) {
-        const int j = joints[4 * size_t(it.col()) + k];
-        const double w = it.value() * weights[4 * size_t(it.col()) + k];
-        auto f = std::find_if(acc.begin(), acc.end(), [&](const auto& p) { return p.first == j; });
-        if (f == acc.end())
-          acc.push_back({j, w});
-        else
-          f->second += w;
-      }
-    std::sort(acc.begin(), acc.end(), [](const auto& a, const auto& b) {
-      return a.second > b.second || (a.second == b.second && a.first < b.first);
-    });
-    double sum = 0;
-    for (size_t k = 0; k < 4 && k < acc.size(); ++k) sum += std::max(0.0, acc[k].second);
-    for (int k = 0; k < 4; ++k) {
-      if (size_t(k) < acc.size() && sum > 0) {
-        nj[4 * size_t(r) + k] = acc[size_t(k)].first;
-        nw[4 * size_t(r) + k] = float(std::max(0.0, acc[size_t(k)].second) / sum);
-      }
-    }
-  }
-  joints = std::move(nj);
-  weights = std::move(nw);
-}
-
 bool skirt_encloses(const SkirtProxy& P, const Eigen::Vector3d& p, int label) {
   return under_skirt_part(label) && p.y() < P.top_y && p.y() > P.hem_y;
 }
@@ -346,6 +311,16 @@ double skirt_follow_gradient(const SkirtJoints& joints, const std::vector<float>
 
 namespace {
 
+// Whether 2D point q lies in triangle abc (either winding, edges included).
+bool in_triangle(const Eigen::Vector2d& q, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                 const Eigen::Vector2d& c) {
+  auto edge = [&](const Eigen::Vector2d& u, const Eigen::Vector2d& v) {
+    return (v.x() - u.x()) * (q.y() - u.y()) - (v.y() - u.y()) * (q.x() - u.x());
+  };
+  const double e0 = edge(a, b), e1 = edge(b, c), e2 = edge(c, a);
+  return (e0 >= 0 && e1 >= 0 && e2 >= 0) || (e0 <= 0 && e1 <= 0 && e2 <= 0);
+}
+
 // Whether the projected triangles cover pixel point q (2D, projected vertices P2).
 struct Silhouette {
   std::vector<Eigen::Vector2d> p;
@@ -358,11 +333,7 @@ struct Silhouette {
       if (q.x() < std::min({a.x(), b.x(), c.x()}) || q.x() > std::max({a.x(), b.x(), c.x()}) ||
           q.y() < std::min({a.y(), b.y(), c.y()}) || q.y() > std::max({a.y(), b.y(), c.y()}))
         continue;
-      auto edge = [&](const Eigen::Vector2d& u, const Eigen::Vector2d& v) {
-        return (v.x() - u.x()) * (q.y() - u.y()) - (v.y() - u.y()) * (q.x() - u.x());
-      };
-      const double e0 = edge(a, b), e1 = edge(b, c), e2 = edge(c, a);
-      if ((e0 >= 0 && e1 >= 0 && e2 >= 0) || (e0 <= 0 && e1 <= 0 && e2 <= 0)) return true;
+      if (in_triangle(q, a, b, c)) return true;
     }
     return false;
   }
@@ -386,13 +357,7 @@ std::vector<uint8_t> arm_bitmap(const std::vector<Eigen::Vector2d>& p, const Eig
     const int y1 = std::min(H - 1, int(std::ceil(std::max({a.y(), b.y(), c.y()}))));
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) {
-        const Eigen::Vector2d q(x + 0.5, y + 0.5);
-        auto edge = [&](const Eigen::Vector2d& u, const Eigen::Vector2d& v) {
-          return (v.x() - u.x()) * (q.y() - u.y()) - (v.y() - u.y()) * (q.x() - u.x());
-        };
-        const double e0 = edge(a, b), e1 = edge(b, c), e2 = edge(c, a);
-        if ((e0 >= 0 && e1 >= 0 && e2 >= 0) || (e0 <= 0 && e1 <= 0 && e2 <= 0))
-          bm[size_t(y) * W + x] = 1;
+        if (in_triangle(Eigen::Vector2d(x + 0.5, y + 0.5), a, b, c)) bm[size_t(y) * W + x] = 1;
       }
   }
   return bm;

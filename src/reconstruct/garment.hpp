@@ -22,13 +22,13 @@
 // Documented in docs/reconstruct.md ("Garment layer").
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-#include <Eigen/SparseCore>
 #include <string>
 #include <vector>
 
 #include "body/body_model.hpp"
 #include "core/camera.hpp"
 #include "core/image.hpp"
+#include "reconstruct/density.hpp"  // remap_top4
 
 namespace ks {
 
@@ -87,10 +87,6 @@ double skirt_free(const SkirtProxy& proxy, double y);
 // renormalised.
 void skirt_blend(const SkirtJoints& joints, double follow, double t, double ts, double free,
                  const int* bj, const float* bw, int* j4, float* w4);
-// Top-4 skinning through a density-control stencil (new r = sum_s S_rs old s): weights summed per
-// joint, the 4 largest kept, renormalised. joints/weights: 4 x old count, replaced.
-void remap_top4(const Eigen::SparseMatrix<double, Eigen::RowMajor>& S, std::vector<int>& joints,
-                std::vector<float>& weights);
 // The proxy's top-4 skinning at a rest-pose point (joints and weights, 4 each).
 void skirt_skin(const SkirtProxy& proxy, const SkirtJoints& joints, const SkirtOptions& opt,
                 const Eigen::Vector3d& p, int* j4, float* w4);

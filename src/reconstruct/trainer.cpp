@@ -221,8 +221,8 @@ void add_garment(const BodyModel& model, const BodyState& rest_state,
   fit.g_bw = st.skin_weights;
   fit.g_bj.resize(4 * size_t(n0 + np), 0);
   fit.g_bw.resize(4 * size_t(n0 + np), 0.f);
-  // The proxy's body weights: its nearest hip, torso or thigh anchor's (anchors sorted by height,
-  // searched in a window around each ring).
+  // The proxy's body weights (wrap only): its nearest hip, torso or thigh anchor's (anchors sorted
+  // by height, searched in a window around each ring).
   std::vector<int> cand;
   for (int i = 0; i < n0; ++i) {
     const int l = st.part_labels[size_t(i)];
@@ -242,7 +242,7 @@ void add_garment(const BodyModel& model, const BodyState& rest_state,
     fit.g_t[size_t(i)] = float(t);
     fit.g_ts[size_t(i)] = float(t * side);
     fit.g_free[size_t(i)] = float(skirt_free(P, p.y()));
-    if (i < n0 || cand.empty()) continue;
+    if (i < n0 || cand.empty() || !so.wrap) continue;  // body weights only blend in with wrap
     double best = 1e30;
     int bi = cand.front();
     for (double win = 0.02; best > 1e29 || win < 0.1; win *= 2) {

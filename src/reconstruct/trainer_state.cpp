@@ -14,6 +14,45 @@ void TrainerState::reset_stats() {
   std::fill(max_radius.begin(), max_radius.end(), 0);
 }
 
+void remap_top4(const Eigen::SparseMatrix<double, Eigen::RowMajor>& S, std::vector<int>& joints,
+                std::vector<float>& weights) {
+  if (joints.size() != 4 * size_t(S.cols()) || weights.size() != joints.size())
+    throw Error("remap_top4: 4 joints and weights per source vertex needed");
+  const int n_new = int(S.rows());
+  std::vector<int> sj(4 * size_t(n_new));
+  std::vector<float> sw(4 * size_t(n_new));
+  std::vector<std::pair<int, double>> acc;
+  for (int r = 0; r < n_new; ++r) {
+    acc.clear();
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(S, r); it; ++it) {
+      const int s = int(it.col());
+      for (int k = 0; k < 4; ++k) {
+        const int j = joints[4 * size_t(s) + k];
+        const double wj = it.value() * weights[4 * size_t(s) + k];
+        auto f = std::find_if(acc.begin(), acc.end(), [&](auto& p) { return p.first == j; });
+        if (f == acc.end())
+          acc.push_back({j, wj});
+        else
+          f->second += wj;
+      }
+    }
+    std::sort(acc.begin(), acc.end(), [](auto& x, auto& y) { return x.second > y.second; });
+    double sum = 0;
+    for (size_t k = 0; k < 4 && k < acc.size(); ++k) sum += std::max(0.0, acc[k].second);
+    for (int k = 0; k < 4; ++k) {
+      if (size_t(k) < acc.size() && sum > 0) {
+        sj[4 * size_t(r) + k] = acc[k].first;
+        sw[4 * size_t(r) + k] = float(std::max(0.0, acc[k].second) / sum);
+      } else {
+        sj[4 * size_t(r) + k] = 0;
+        sw[4 * size_t(r) + k] = 0.f;
+      }
+    }
+  }
+  joints = std::move(sj);
+  weights = std::move(sw);
+}
+
 void TrainerState::apply_stencil(const Eigen::SparseMatrix<double, Eigen::RowMajor>& S,
                                  const Eigen::MatrixXi& new_faces) {
   const int n_old = num_vertices();
@@ -30,57 +69,33 @@ void TrainerState::apply_stencil(const Eigen::SparseMatrix<double, Eigen::RowMaj
       throw Error("apply_stencil: stencil row " + std::to_string(r) + " is empty");
 
   Eigen::MatrixXd new_anchors = S * anchors;
-  std::vector<int> labels(n_new), sj(4 * size_t(n_new)), cnt(n_new);
-  std::vector<float> sw(4 * size_t(n_new)), bias(n_new), acc(n_new);
+  std::vector<int> labels(n_new), cnt(n_new);
+  std::vector<float> bias(n_new), acc(n_new);
   std::vector<int> rad(n_new);
-  std::vector<std::pair<int, double>> joints;
   for (int r = 0; r < n_new; ++r) {
     double best = -1.0;
     int best_src = 0;
-    joints.clear();
     double b = 0, a = 0, c = 0;
     int rr = 0;
     for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(S, r); it; ++it) {
       const int s = int(it.col());
       const double w = it.value();
       if (w > best) best = w, best_src = s;
-      for (int k = 0; k < 4; ++k) {
-        const int j = skin_joints[4 * size_t(s) + k];
-        const double wj = w * skin_weights[4 * size_t(s) + k];
-        auto f = std::find_if(joints.begin(), joints.end(), [&](auto& p) { return p.first == j; });
-        if (f == joints.end())
-          joints.push_back({j, wj});
-        else
-          f->second += wj;
-      }
       b += w * (s < int(log_scale_bias.size()) ? log_scale_bias[s] : 0.f);
       a += w * (s < int(grad2d_accum.size()) ? grad2d_accum[s] : 0.f);
       c += w * (s < int(grad2d_count.size()) ? grad2d_count[s] : 0);
       rr = std::max(rr, s < int(max_radius.size()) ? max_radius[s] : 0);
     }
     labels[r] = part_labels[best_src];
-    std::sort(joints.begin(), joints.end(), [](auto& x, auto& y) { return x.second > y.second; });
-    double sum = 0;
-    for (size_t k = 0; k < 4 && k < joints.size(); ++k) sum += std::max(0.0, joints[k].second);
-    for (int k = 0; k < 4; ++k) {
-      if (size_t(k) < joints.size() && sum > 0) {
-        sj[4 * size_t(r) + k] = joints[k].first;
-        sw[4 * size_t(r) + k] = float(std::max(0.0, joints[k].second) / sum);
-      } else {
-        sj[4 * size_t(r) + k] = 0;
-        sw[4 * size_t(r) + k] = 0.f;
-      }
-    }
     bias[r] = float(b);
     acc[r] = float(a);
     cnt[r] = int(c + 0.5);
     rad[r] = rr;
   }
+  remap_top4(S, skin_joints, skin_weights);
   anchors = std::move(new_anchors);
   faces = new_faces;
   part_labels = std::move(labels);
-  skin_joints = std::move(sj);
-  skin_weights = std::move(sw);
   log_scale_bias = std::move(bias);
   grad2d_accum = std::move(acc);
   grad2d_count = std::move(cnt);
