@@ -84,6 +84,18 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   sub->add_option("--garment-wrap", args->opt.skirt.wrap,
                   "Blend the body's skinning into the skirt's above the crotch (0/1)")
       ->capture_default_str();
+  sub->add_option("--garment-follow-knots", args->opt.skirt.follow_knots,
+                  "The follow as a profile of this many values from rim to hem (1 = one number)")
+      ->check(CLI::Range(1, 16))
+      ->capture_default_str();
+  sub->add_option("--garment-margin", args->opt.skirt.margin,
+                  "Metres the skirt proxy stands outside the hips' and thighs' cross-section")
+      ->check(CLI::Range(0.0, 0.2))
+      ->capture_default_str();
+  sub->add_option("--garment-waist", args->opt.skirt.waist,
+                  "Metres below the rim over which the body under the skirt blends from its own "
+                  "skinning to the skirt's (0 = none)")
+      ->capture_default_str();
   sub->add_option("--garment-fit-width", args->opt.garment_fit_width,
                   "--garment auto: widen the skirt proxy to the width the masks show (0/1)")
       ->capture_default_str();
@@ -178,7 +190,7 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
     av.metadata["density"] = a.density;
     if (!rep.garment_summary.empty())
       std::printf("%s%s\n", rep.garment_summary.c_str(),
-                  rep.garment ? ("; follow " + std::to_string(rep.garment_follow)).c_str() : "");
+                  rep.garment ? ("; follow " + rep.garment_follow_profile).c_str() : "");
     av.metadata["fine_scale"] = a.opt.fine_from < 1.f ? a.fine_scale : a.opt.scale;
     ks::save_avatar(a.out, av);
     std::printf("avatar: %s (%d Gaussians)\n", a.out.c_str(), av.num_gaussians());

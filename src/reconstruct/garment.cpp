@@ -225,6 +225,10 @@ double skirt_free(const SkirtProxy& P, double y) {
   return P.ring_free[size_t(k)];
 }
 
+double skirt_waist(const SkirtProxy& P, double waist, double y) {
+  return waist > 0 ? smoothstep(0.0, waist, P.top_y - y) : 1.0;
+}
+
 void skirt_blend(const SkirtJoints& joints, double follow, double t, double ts, double free,
                  const int* bj, const float* bw, int* j4, float* w4) {
   int sj[4];
@@ -275,37 +279,67 @@ int reskin_enclosed(const SkirtProxy& P, const SkirtJoints& joints, const SkirtO
   return changed;
 }
 
-double skirt_follow_gradient(const SkirtJoints& joints, const std::vector<float>& in,
-                             const std::vector<float>& t, const std::vector<float>& ts,
-                             const std::vector<float>& free,
-                             const std::vector<Eigen::Matrix4d>& transforms,
-                             const std::vector<float>& x, const std::vector<float>& dmeans_posed) {
+void follow_knot_weights(int knots, double t, int* k0, double* w0) {
+  if (knots <= 1) {
+    *k0 = 0;
+    *w0 = 1.0;
+    return;
+  }
+  const double u = std::clamp(t, 0.0, 1.0) * (knots - 1);
+  const int k = std::min(int(u), knots - 2);
+  *k0 = k;
+  *w0 = 1.0 - (u - k);
+}
+
+double follow_at(const std::vector<double>& knots, double t) {
+  if (knots.empty()) throw Error("follow_at: no knots");
+  int k0;
+  double w0;
+  follow_knot_weights(int(knots.size()), t, &k0, &w0);
+  if (knots.size() == 1) return knots[0];
+  return w0 * knots[size_t(k0)] + (1.0 - w0) * knots[size_t(k0) + 1];
+}
+
+std::vector<double> skirt_follow_gradient(const SkirtJoints& joints, const std::vector<float>& in,
+                                          const std::vector<float>& t, const std::vector<float>& ts,
+                                          const std::vector<float>& free,
+                                          const std::vector<Eigen::Matrix4d>& transforms,
+                                          const std::vector<float>& x,
+                                          const std::vector<float>& dmeans_posed, int knots) {
   const int n = int(in.size());
   if (t.size() != in.size() || ts.size() != in.size() || free.size() != in.size() ||
       x.size() != 3 * in.size() || dmeans_posed.size() != 3 * in.size())
     throw Error("skirt_follow_gradient: array sizes differ");
+  if (knots < 1) throw Error("skirt_follow_gradient: knots must be >= 1");
   const Eigen::Matrix4d& Tp = transforms[size_t(joints.pelvis)];
   const Eigen::Matrix4d& Tl = transforms[size_t(joints.left_hip)];
   const Eigen::Matrix4d& Tr = transforms[size_t(joints.right_hip)];
   constexpr int kBlock = 4096;
   const int nb = (n + kBlock - 1) / kBlock;
-  std::vector<double> part(size_t(nb), 0.0);
+  const size_t K = size_t(knots);
+  std::vector<double> part(size_t(nb) * K, 0.0);
 #pragma omp parallel for schedule(static)
   for (int b = 0; b < nb; ++b) {
-    double acc = 0;
+    double* acc = &part[size_t(b) * K];
     for (int i = b * kBlock; i < std::min(n, (b + 1) * kBlock); ++i) {
       const float g = in[size_t(i)];
       if (!(g > 0.5f)) continue;
       const double ti = t[size_t(i)] / g, tsi = ts[size_t(i)] / g, fi = free[size_t(i)] / g;
       const Eigen::Vector4d xi(x[3 * size_t(i)], x[3 * size_t(i) + 1], x[3 * size_t(i) + 2], 1.0);
       const Eigen::Vector4d dp = fi * (-ti * (Tp * xi) + tsi * (Tl * xi) + (ti - tsi) * (Tr * xi));
-      acc += dmeans_posed[3 * size_t(i)] * dp[0] + dmeans_posed[3 * size_t(i) + 1] * dp[1] +
-             dmeans_posed[3 * size_t(i) + 2] * dp[2];
+      const double d = dmeans_posed[3 * size_t(i)] * dp[0] +
+                       dmeans_posed[3 * size_t(i) + 1] * dp[1] +
+                       dmeans_posed[3 * size_t(i) + 2] * dp[2];
+      int k0;
+      double w0;
+      follow_knot_weights(knots, ti, &k0, &w0);
+      acc[k0] += w0 * d;
+      if (knots > 1) acc[size_t(k0) + 1] += (1.0 - w0) * d;
     }
-    part[size_t(b)] = acc;
   }
-  double df = 0;
-  for (double v : part) df += v;
+  std::vector<double> df(K, 0.0);
+  for (int b = 0; b < nb; ++b)
+    for (size_t k = 0; k < K; ++k) df[k] += part[size_t(b) * K + k];
   return df;
 }
 

@@ -11,9 +11,11 @@
 // the hem. At height fraction t (0 at the rim, 1 at the hem) and side s (smoothstep of the
 // normalised x across the ellipse: 1 = the body's left):
 //   w = (1 - follow t) pelvis + follow t (s left_hip + (1 - s) right_hip)
-// The body's own hip and thigh anchors inside the tube are re-skinned the same way, so that no
-// thigh pokes through the cloth in a pose the training frames never showed. The trainer learns
-// `follow` (one number) from the image gradient (skirt_follow_gradient).
+// where follow is a profile in t (a few knots, linear between them). The body's own hip and
+// thigh anchors inside the tube are re-skinned the same way, so that no thigh pokes through the
+// cloth in a pose the training frames never showed, except in a waistband below the rim, where
+// they blend from their own skinning (at the rim) to the skirt's. The trainer learns the follow
+// profile from the image gradient (skirt_follow_gradient).
 //
 // Detection (`detect_skirt`): in the training frames seen from the front or back, the mask is
 // followed down the line between the legs (hip joints' midpoint to knees' midpoint); where it
@@ -33,10 +35,13 @@
 namespace ks {
 
 struct SkirtOptions {
-  double hem = 0.85;     // hem height: fraction of the way from the hip joints down to the knees
-  double follow = 0.5;   // how much the hem follows the legs (0 = pelvis only)
-  double margin = 0.01;  // metres outside the hips' and thighs' cross-section
-  double spacing = 0.0;  // metres between proxy vertices; 0 = 1.25 x the template's mean edge
+  double hem = 0.85;    // hem height: fraction of the way from the hip joints down to the knees
+  double follow = 0.5;  // how much the hem follows the legs (0 = pelvis only)
+  // The follow as a profile down the skirt: this many values at evenly spaced t = 0..1, linearly
+  // interpolated (each starts at `follow`); 1 = one number for the whole skirt.
+  int follow_knots = 5;
+  double margin = 0.025;  // metres outside the hips' and thighs' cross-section
+  double spacing = 0.0;   // metres between proxy vertices; 0 = 1.25 x the template's mean edge
   // Measured half-width of the skirt (metres, across the body) at evenly spaced fractions
   // u = 0..1 of the way from the hip joints to the knees (detect_skirt); where it exceeds a
   // ring's half-width, the ring is widened to it (depth in proportion). Empty or 0: not measured.
@@ -44,6 +49,10 @@ struct SkirtOptions {
   // Above the crotch, blend the body's skinning into the skirt's (ring_free below); off: the
   // whole proxy hangs as a skirt (ring_free = 1), which scored better on synth seed 0.
   bool wrap = false;
+  // Waistband: the body's own anchors under the skirt keep the body's skinning at the rim and
+  // blend (smoothstep) to the skirt's over this many metres below it. 0: skirt skinning from the
+  // rim down. The proxy itself is skinned as a skirt throughout (see wrap).
+  double waist = 0.2;
 };
 
 struct SkirtProxy {
@@ -82,6 +91,10 @@ void skirt_weights(const SkirtJoints& joints, double follow, double t, double ts
                    float* w4);
 // How freely the cloth hangs at height y (the nearest ring's ring_free; 1 below the hem).
 double skirt_free(const SkirtProxy& proxy, double y);
+// The waistband's share of skirt skinning for a body anchor at height y under the skirt
+// (SkirtOptions::waist): 0 at the rim rising (smoothstep) to 1 at `waist` metres below; 1 if
+// waist <= 0.
+double skirt_waist(const SkirtProxy& proxy, double waist, double y);
 // The blend of a point's body skinning (bj, bw: 4 each) and the skirt's:
 // (1 - free) body + free skirt_weights(follow, t, ts), joints merged, the 4 largest kept,
 // renormalised.
@@ -99,18 +112,27 @@ int reskin_enclosed(const SkirtProxy& proxy, const SkirtJoints& joints, const Sk
                     const Eigen::MatrixXd& anchors, const std::vector<int>& labels,
                     std::vector<int>& skin_joints, std::vector<float>& skin_weights);
 
+// The follow at height fraction t of a profile of knots.size() values at evenly spaced t = 0..1
+// (linear between them; one value: constant). follow_knot_weights gives the two knots t falls
+// between, k0 and k0 + 1 (k0 + 1 = k0 for one knot), and k0's weight w0 (k0 + 1 gets 1 - w0).
+double follow_at(const std::vector<double>& knots, double t);
+void follow_knot_weights(int knots, double t, int* k0, double* w0);
+
 // d/d follow of sum_i g_i . p_i, p_i the posed mean of vertex i skinned by skirt_blend(follow,
 // t_i, (ts)_i, free_i, ...) for the vertices with in_i > 0.5 (t_i = t[i] / in[i], likewise ts and
 // free): dp_i/d follow = free_i (-t_i T_pelvis x_i + (ts)_i T_left x_i + (t_i - (ts)_i) T_right
 // x_i) (exact while the blend's top 4 keep every skirt joint).
 // x: 3N canonical means (pose correctives included); dmeans_posed: 3N. The posed rotation's
 // dependence on the weights is left out (exact for isotropic Gaussians). Summed in fixed blocks,
-// so the result does not depend on the thread count.
-double skirt_follow_gradient(const SkirtJoints& joints, const std::vector<float>& in,
-                             const std::vector<float>& t, const std::vector<float>& ts,
-                             const std::vector<float>& free,
-                             const std::vector<Eigen::Matrix4d>& transforms,
-                             const std::vector<float>& x, const std::vector<float>& dmeans_posed);
+// so the result does not depend on the thread count. With a follow profile of `knots` values
+// (follow_at), the gradient per knot: vertex i's share goes to the knots around t_i by their
+// interpolation weights. Returns `knots` values.
+std::vector<double> skirt_follow_gradient(const SkirtJoints& joints, const std::vector<float>& in,
+                                          const std::vector<float>& t, const std::vector<float>& ts,
+                                          const std::vector<float>& free,
+                                          const std::vector<Eigen::Matrix4d>& transforms,
+                                          const std::vector<float>& x,
+                                          const std::vector<float>& dmeans_posed, int knots = 1);
 
 // One training view for detection: the mask (1 channel), the camera and the posed joints
 // (J x 3, world).

@@ -70,17 +70,18 @@ struct Fit {
   // it), g t, g t s and g free (height fraction, side, how freely the cloth hangs:
   // reconstruct/garment.hpp), carried linearly by the stencil, and the body's own top-4 weights
   // (for the proxy: its nearest body anchor's), carried like the skin weights; a vertex with
-  // g > 0.5 is skinned by skirt_blend at the current follow.
+  // g > 0.5 is skinned by skirt_blend at the current follow profile (follow_at its t).
   bool garment = false;
   SkirtJoints garment_joints;
   std::vector<float> g_in, g_t, g_ts, g_free;
   std::vector<int> g_bj;
   std::vector<float> g_bw;
-  void set_garment_weights(double follow) {
+  void set_garment_weights(const std::vector<double>& follow) {
     for (int i = 0; i < state.num_vertices(); ++i) {
       const float g = g_in[size_t(i)];
       if (!(g > 0.5f)) continue;
-      skirt_blend(garment_joints, follow, g_t[size_t(i)] / g, g_ts[size_t(i)] / g,
+      const double t = g_t[size_t(i)] / g;
+      skirt_blend(garment_joints, follow_at(follow, t), t, g_ts[size_t(i)] / g,
                   g_free[size_t(i)] / g, &g_bj[4 * size_t(i)], &g_bw[4 * size_t(i)],
                   &state.skin_joints[4 * size_t(i)], &state.skin_weights[4 * size_t(i)]);
     }
@@ -241,7 +242,9 @@ void add_garment(const BodyModel& model, const BodyState& rest_state,
     fit.g_in[size_t(i)] = 1.f;
     fit.g_t[size_t(i)] = float(t);
     fit.g_ts[size_t(i)] = float(t * side);
-    fit.g_free[size_t(i)] = float(skirt_free(P, p.y()));
+    double free = skirt_free(P, p.y());
+    if (i < n0) free *= skirt_waist(P, so.waist, p.y());
+    fit.g_free[size_t(i)] = float(free);
     if (i < n0 || cand.empty() || !so.wrap) continue;  // body weights only blend in with wrap
     double best = 1e30;
     int bi = cand.front();
@@ -267,7 +270,7 @@ void add_garment(const BodyModel& model, const BodyState& rest_state,
   st.part_labels.resize(size_t(n0 + np), kHips);
   st.skin_joints.resize(4 * size_t(n0 + np), 0);
   st.skin_weights.resize(4 * size_t(n0 + np), 0.f);
-  fit.set_garment_weights(so.follow);
+  fit.set_garment_weights(std::vector<double>(size_t(std::max(1, so.follow_knots)), so.follow));
   st.log_scale_bias.resize(size_t(n0 + np), float(std::log(P.spacing / edge)));
   // Body-model stencil: no source vertices for the proxy (zero rows).
   SpMat S(n0 + np, fit.S.cols());
@@ -498,18 +501,35 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
   }
   int skin_group = -1;
   if (fit.learn_skin) skin_group = adam.add_group("skin_logits", &fit.skin.logits, opt.lr_skin);
-  // The skirt's follow in logit units (learned when lr_garment_follow > 0 and the skin weights are
-  // not learned per Gaussian).
-  std::vector<float> follow_logit(1, 0.f), follow_grad(1, 0.f);
+  // The skirt's follow profile in logit units, one per knot (learned when lr_garment_follow > 0
+  // and the skin weights are not learned per Gaussian).
+  const size_t follow_knots = size_t(std::max(1, opt.skirt.follow_knots));
+  std::vector<float> follow_logit(follow_knots, 0.f), follow_grad(follow_knots, 0.f);
   {
     const double f0 = std::clamp(double(opt.skirt.follow), 1e-3, 1.0 - 1e-3);
-    follow_logit[0] = float(std::log(f0 / (1.0 - f0)));
+    std::fill(follow_logit.begin(), follow_logit.end(), float(std::log(f0 / (1.0 - f0))));
   }
   const bool learn_follow = fit.garment && opt.lr_garment_follow > 0 && !fit.learn_skin;
   int follow_group = -1;
   if (learn_follow)
     follow_group = adam.add_group("garment_follow", &follow_logit, opt.lr_garment_follow);
-  auto follow_value = [&] { return 1.0 / (1.0 + std::exp(-double(follow_logit[0]))); };
+  auto follow_values = [&] {
+    std::vector<double> f(follow_knots);
+    for (size_t k = 0; k < follow_knots; ++k)
+      f[k] = 1.0 / (1.0 + std::exp(-double(follow_logit[k])));
+    return f;
+  };
+  // The follow at the hem (the whole skirt's, with one knot).
+  auto follow_value = [&] { return follow_values().back(); };
+  auto follow_text = [&] {
+    std::string txt;
+    char buf[16];
+    for (double f : follow_values()) {
+      std::snprintf(buf, sizeof buf, "%s%.3f", txt.empty() ? "" : "/", f);
+      txt += buf;
+    }
+    return txt;
+  };
   const int skin_start =
       std::clamp(int(std::lround(double(opt.skin_from) * opt.iterations)), 0, opt.iterations);
   const int num_joints = model.num_joints();
@@ -562,7 +582,7 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
         for (int k = 0; k < 3; ++k) pose_off[3 * size_t(i) + k] = float(po(i, k));
     }
     if (fit.learn_skin) fit.skin.weights(skin_w);
-    if (learn_follow) fit.set_garment_weights(follow_value());
+    if (learn_follow) fit.set_garment_weights(follow_values());
     lbs_forward(canon, pose_off, fit.learn_skin ? fit.skin.joints : st.skin_joints,
                 fit.learn_skin ? skin_w : st.skin_weights, bs.transforms, posed, lbs_cache);
     rasterize_forward(posed, fr.camera, rs, rr);
@@ -595,10 +615,11 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       // d loss / d follow through the posed means (reconstruct/garment.hpp), then the sigmoid.
       xcanon.resize(3 * size_t(n));
       for (size_t q = 0; q < 3 * size_t(n); ++q) xcanon[q] = canon.means[q] + pose_off[q];
-      const double df = skirt_follow_gradient(fit.garment_joints, fit.g_in, fit.g_t, fit.g_ts,
-                                              fit.g_free, bs.transforms, xcanon, rg.means);
-      const double f = follow_value();
-      follow_grad[0] = float(df * f * (1.0 - f));
+      const std::vector<double> df =
+          skirt_follow_gradient(fit.garment_joints, fit.g_in, fit.g_t, fit.g_ts, fit.g_free,
+                                bs.transforms, xcanon, rg.means, int(follow_knots));
+      const std::vector<double> f = follow_values();
+      for (size_t k = 0; k < follow_knots; ++k) follow_grad[k] = float(df[k] * f[k] * (1.0 - f[k]));
     }
 
     // Regularisers on offsets and colours.
@@ -718,11 +739,10 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
     }
     if (opt.log_every > 0 && (it % opt.log_every == 0 || it + 1 == opt.iterations))
       std::fprintf(stderr, "it %d loss %.5f l1 %.4f ssim %.4f mask %.4f psnr %.2f%s\n", it, loss,
-                   l1, ss, lmask, psnr,
-                   fit.garment ? (" follow " + std::to_string(follow_value())).c_str() : "");
+                   l1, ss, lmask, psnr, fit.garment ? (" follow " + follow_text()).c_str() : "");
   }
   if (opt.progress) progress.finish();
-  if (learn_follow) fit.set_garment_weights(follow_value());
+  if (learn_follow) fit.set_garment_weights(follow_values());
 
   // Bake the final canonical attributes.
   dec.geo.unpack(geo_params);
@@ -783,6 +803,7 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
       {"learned_skin", fit.learn_skin},
       {"garment", garment_vertices > 0 ? "skirt" : "none"},
       {"garment_follow", fit.garment ? follow_value() : 0.0},
+      {"garment_follow_profile", fit.garment ? follow_values() : std::vector<double>{}},
       {"seed", opt.seed},
       {"frames", frames.size()},
   };
@@ -797,6 +818,7 @@ Avatar train_avatar(const BodyModel& model, const Dataset& ds,
     report->garment_vertices = garment_vertices;
     report->garment_summary = garment_summary;
     report->garment_follow = fit.garment ? float(follow_value()) : 0.f;
+    if (fit.garment) report->garment_follow_profile = follow_text();
   }
   return av;
 }

@@ -132,7 +132,8 @@ struct TrainReport {
   bool garment = false;         // the skirt proxy was added
   int garment_vertices = 0;     // its vertices (before density control)
   std::string garment_summary;  // detection / proxy line (empty with GarmentMode::kNone)
-  float garment_follow = 0;     // the skirt's follow at the end (learned or fixed)
+  float garment_follow = 0;     // the skirt's follow at the end (learned or fixed), at the hem
+  std::string garment_follow_profile;  // its value per knot, "/"-separated
 };
 
 // Fits an avatar to a dataset (frames already loaded with load_training_frames). The result is

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <random>
@@ -232,14 +233,17 @@ TEST(Garment, FollowGradientMatchesFiniteDifferences) {
     const int bj[4] = {J.pelvis, J.left_hip, J.right_hip, 3};
     for (int k = 0; k < 4; ++k) sj[4 * size_t(i) + k] = bj[k], sw[4 * size_t(i) + k] = 0.25f;
   }
-  auto objective = [&](double follow) {
+  // The objective at a follow profile (one knot: one number for the whole skirt).
+  auto objective = [&](const std::vector<double>& knots) {
     std::vector<int> j4 = sj;
     std::vector<float> w4 = sw;
     for (int i = 0; i < n; ++i)
-      if (in[size_t(i)] > 0.5f)
-        skirt_blend(J, follow, t[size_t(i)] / in[size_t(i)], ts[size_t(i)] / in[size_t(i)],
+      if (in[size_t(i)] > 0.5f) {
+        const double ti = t[size_t(i)] / in[size_t(i)];
+        skirt_blend(J, follow_at(knots, ti), ti, ts[size_t(i)] / in[size_t(i)],
                     fr[size_t(i)] / in[size_t(i)], &sj[4 * size_t(i)], &sw[4 * size_t(i)],
                     &j4[4 * size_t(i)], &w4[4 * size_t(i)]);
+      }
     Gaussians posed;
     LbsCache cache;
     lbs_forward(g, pose_off, j4, w4, T, posed, cache);
@@ -249,13 +253,50 @@ TEST(Garment, FollowGradientMatchesFiniteDifferences) {
   };
   std::vector<float> x(3 * n);
   for (size_t q = 0; q < x.size(); ++q) x[q] = g.means[q] + pose_off[q];
+  const double h = 1e-3;
   for (double f : {0.2, 0.5, 0.9}) {
-    const double h = 1e-3;
-    const double fd = (objective(f + h) - objective(f - h)) / (2 * h);
-    const double an = skirt_follow_gradient(J, in, t, ts, fr, T, x, c);
-    EXPECT_NEAR(an, fd, 2e-3 * (1 + std::abs(fd))) << "follow " << f;
+    const double fd = (objective({f + h}) - objective({f - h})) / (2 * h);
+    const std::vector<double> an = skirt_follow_gradient(J, in, t, ts, fr, T, x, c);
+    ASSERT_EQ(an.size(), 1u);
+    EXPECT_NEAR(an[0], fd, 2e-3 * (1 + std::abs(fd))) << "follow " << f;
   }
+  // A profile of 4 knots: the gradient per knot.
+  const std::vector<double> knots = {0.3, 0.6, 0.8, 0.7};
+  const std::vector<double> an = skirt_follow_gradient(J, in, t, ts, fr, T, x, c, 4);
+  ASSERT_EQ(an.size(), 4u);
+  double total = 0;
+  for (size_t k = 0; k < knots.size(); ++k) {
+    std::vector<double> kp = knots, km = knots;
+    kp[k] += h;
+    km[k] -= h;
+    const double fd = (objective(kp) - objective(km)) / (2 * h);
+    EXPECT_NEAR(an[k], fd, 2e-3 * (1 + std::abs(fd))) << "knot " << k;
+    EXPECT_GT(std::abs(an[k]), 1e-6) << "knot " << k;  // every knot has vertices around it
+    total += an[k];
+  }
+  // The knots' shares add up to the one-number gradient (the profile's values do not enter it).
+  EXPECT_NEAR(total, skirt_follow_gradient(J, in, t, ts, fr, T, x, c)[0],
+              1e-9 * (1 + std::abs(total)));
   EXPECT_THROW(skirt_follow_gradient(J, in, t, std::vector<float>(3), fr, T, x, c), Error);
+  EXPECT_THROW(skirt_follow_gradient(J, in, t, ts, fr, T, x, c, 0), Error);
+}
+
+TEST(Garment, FollowProfile) {
+  EXPECT_DOUBLE_EQ(follow_at({0.7}, 0.0), 0.7);
+  EXPECT_DOUBLE_EQ(follow_at({0.7}, 1.0), 0.7);
+  const std::vector<double> k = {0.2, 0.6, 1.0};
+  EXPECT_DOUBLE_EQ(follow_at(k, 0.0), 0.2);
+  EXPECT_DOUBLE_EQ(follow_at(k, 0.25), 0.4);
+  EXPECT_DOUBLE_EQ(follow_at(k, 0.5), 0.6);
+  EXPECT_DOUBLE_EQ(follow_at(k, 1.0), 1.0);
+  EXPECT_DOUBLE_EQ(follow_at(k, 1.5), 1.0);  // clamped to the hem
+  EXPECT_DOUBLE_EQ(follow_at(k, -0.5), 0.2);
+  int k0;
+  double w0;
+  follow_knot_weights(3, 0.75, &k0, &w0);
+  EXPECT_EQ(k0, 1);
+  EXPECT_DOUBLE_EQ(w0, 0.5);
+  EXPECT_THROW(follow_at({}, 0.5), Error);
 }
 
 TEST(Garment, BlendFreeAndRemap) {
@@ -426,6 +467,39 @@ TEST(Garment, TrainerAddsTheProxyAsItsOwnComponent) {
   }
   EXPECT_GT(F.rows(), plain.template_faces.rows());
   EXPECT_EQ(mixed, 0);
+  // The waistband (the default): the body's anchors just under the rim keep (nearly) their own
+  // weights; those further below than the band take the skirt's, as without one.
+  ASSERT_GT(opt.skirt.waist, 0.0);
+  TrainOptions o0 = opt;
+  o0.skirt.waist = 0;
+  const Avatar unbelted = test::one_step_avatar(model, ds, o0);
+  ASSERT_EQ(unbelted.num_gaussians(), n1);
+  const double rim = dressed.rest_joints(J.pelvis, 1), band = opt.skirt.waist;
+  auto weight_of = [](const Avatar& a, int i, int j) {
+    float w = 0;
+    for (int k = 0; k < 4; ++k)
+      if (a.skin_joints[4 * size_t(i) + k] == j) w += a.skin_weights[4 * size_t(i) + k];
+    return w;
+  };
+  int near_rim = 0, deep = 0, changed = 0;
+  for (int i = 0; i < n0; ++i) {
+    const double y = dressed.anchors[3 * size_t(i) + 1];
+    const int l = dressed.part_labels[size_t(i)];
+    if (l != kHips && l != kLeftUpperLeg && l != kRightUpperLeg) continue;
+    for (int j : {J.pelvis, J.left_hip, J.right_hip}) {
+      if (y < rim && y > rim - 0.01) {
+        ++near_rim;
+        EXPECT_NEAR(weight_of(dressed, i, j), weight_of(plain, i, j), 0.02f) << i;
+      } else if (y < rim - band - 0.005 && y > rim - band - 0.05) {
+        ++deep;
+        EXPECT_NEAR(weight_of(dressed, i, j), weight_of(unbelted, i, j), 1e-5f) << i;
+      }
+      changed += std::abs(weight_of(dressed, i, j) - weight_of(unbelted, i, j)) > 1e-3f;
+    }
+  }
+  EXPECT_GT(near_rim, 0);
+  EXPECT_GT(deep, 0);
+  EXPECT_GT(changed, 0);
   // Auto on a blank frame (no person in the mask): nothing to detect, no proxy.
   opt.garment = GarmentMode::kAuto;
   EXPECT_EQ(test::one_step_avatar(model, ds, opt).num_gaussians(), n0);
@@ -465,6 +539,7 @@ TEST(Garment, TrainerLearnsTheFollowFromSwingingLegs) {
   TrainOptions o = opt;
   o.iterations = 60;
   o.skirt.follow = 0.3;
+  o.skirt.follow_knots = 1;  // one number first
   o.lr_garment_follow = 0.1f;
   TrainReport rep;
   const Avatar a = train_avatar(model, ds, frames, o, &rep);
@@ -481,6 +556,19 @@ TEST(Garment, TrainerLearnsTheFollowFromSwingingLegs) {
   TrainReport fixed;
   train_avatar(model, ds, frames, o, &fixed);
   EXPECT_NEAR(fixed.garment_follow, 0.3f, 1e-6f);
+  // A profile of 3 knots (rim, middle, hem; the default): learned too, reported per knot.
+  o.skirt.follow_knots = 3;
+  o.lr_garment_follow = 0.1f;
+  o.iterations = 60;
+  TrainReport prof;
+  const Avatar ap = train_avatar(model, ds, frames, o, &prof);
+  const auto knots = ap.metadata.at("garment_follow_profile").get<std::vector<double>>();
+  ASSERT_EQ(knots.size(), 3u);
+  EXPECT_GT(knots[1], 0.4) << "started at 0.3, truth 0.9";
+  EXPECT_GT(knots[2], 0.5) << "started at 0.3, truth 0.9";
+  EXPECT_NEAR(prof.garment_follow, knots[2], 1e-6);
+  EXPECT_EQ(std::count(prof.garment_follow_profile.begin(), prof.garment_follow_profile.end(), '/'),
+            2);
 }
 
 }  // namespace ks
