@@ -95,6 +95,7 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   sub->add_option("--garment-waist", args->opt.skirt.waist,
                   "Metres below the rim over which the body under the skirt blends from its own "
                   "skinning to the skirt's (0 = none)")
+      ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   sub->add_option("--garment-fit-width", args->opt.garment_fit_width,
                   "--garment auto: widen the skirt proxy to the width the masks show (0/1)")

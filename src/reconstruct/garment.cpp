@@ -271,9 +271,20 @@ int reskin_enclosed(const SkirtProxy& P, const SkirtJoints& joints, const SkirtO
                     std::vector<int>& skin_joints, std::vector<float>& skin_weights) {
   int changed = 0;
   for (long i = 0; i < anchors.rows(); ++i) {
-    if (!skirt_encloses(P, anchors.row(i).transpose(), labels[size_t(i)])) continue;
-    skirt_skin(P, joints, opt, anchors.row(i).transpose(), &skin_joints[4 * size_t(i)],
-               &skin_weights[4 * size_t(i)]);
+    const Eigen::Vector3d p = anchors.row(i).transpose();
+    if (!skirt_encloses(P, p, labels[size_t(i)])) continue;
+    int* j4 = &skin_joints[4 * size_t(i)];
+    float* w4 = &skin_weights[4 * size_t(i)];
+    const double free = skirt_free(P, p.y()) * skirt_waist(P, opt.waist, p.y());
+    if (free >= 1.0) {
+      skirt_skin(P, joints, opt, p, j4, w4);
+    } else {  // in the waistband (or wrapped): blended with the anchor's own weights
+      const int bj[4] = {j4[0], j4[1], j4[2], j4[3]};
+      const float bw[4] = {w4[0], w4[1], w4[2], w4[3]};
+      double t, s;
+      skirt_coords(P, p, &t, &s);
+      skirt_blend(joints, opt.follow, t, t * s, free, bj, bw, j4, w4);
+    }
     ++changed;
   }
   return changed;

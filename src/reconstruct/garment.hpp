@@ -106,8 +106,9 @@ void skirt_skin(const SkirtProxy& proxy, const SkirtJoints& joints, const SkirtO
 
 // Whether a body anchor is under the proxy (hips and upper legs between rim and hem).
 bool skirt_encloses(const SkirtProxy& proxy, const Eigen::Vector3d& p, int label);
-// Re-skins the body anchors the proxy encloses with the proxy's skinning. Returns how many were
-// changed.
+// Re-skins the body anchors the proxy encloses with the proxy's skinning at opt.follow (one
+// number), blended with their own weights in the waistband (opt.waist) as the trainer does.
+// Returns how many were changed.
 int reskin_enclosed(const SkirtProxy& proxy, const SkirtJoints& joints, const SkirtOptions& opt,
                     const Eigen::MatrixXd& anchors, const std::vector<int>& labels,
                     std::vector<int>& skin_joints, std::vector<float>& skin_weights);

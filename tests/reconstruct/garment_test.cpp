@@ -171,11 +171,14 @@ TEST(Garment, SkinningRunsFromPelvisAtTheRimToTheLegsAtTheHem) {
   EXPECT_NEAR(weight(last + 3 * M / 4, J.right_hip), 0.6f, 1e-5f);  // -X: the right
   EXPECT_GT(rb.state.rest_joints(J.left_hip, 0), rb.state.rest_joints(J.right_hip, 0));
 
-  // The body under it takes the same skinning; the rest keeps its own.
+  // The body under it takes the same skinning (no waistband); the rest keeps its own.
   std::vector<int> sj(4 * size_t(V.rows()), 0);
   std::vector<float> sw(4 * size_t(V.rows()), 0.f);
   for (long i = 0; i < V.rows(); ++i) sw[4 * size_t(i)] = 1.f;
   const std::vector<int> sj0 = sj;
+  const std::vector<float> sw0 = sw;
+  SkirtOptions belted = so;
+  so.waist = 0;
   const int changed = reskin_enclosed(P, J, so, V, rb.labels, sj, sw);
   EXPECT_GT(changed, 100);
   int counted = 0;
@@ -193,6 +196,35 @@ TEST(Garment, SkinningRunsFromPelvisAtTheRimToTheLegsAtTheHem) {
     }
   }
   EXPECT_EQ(counted, changed);
+  // With the waistband (the default), an anchor just under the rim keeps nearly its own weight
+  // (all on joint 3 here, which the skirt does not use); one below the band takes the skirt's,
+  // as without it.
+  ASSERT_GT(belted.waist, 0.0);
+  const int own_joint = 3;
+  ASSERT_TRUE(own_joint != J.pelvis && own_joint != J.left_hip && own_joint != J.right_hip);
+  std::vector<int> bj(sj0.size());
+  for (size_t q = 0; q < bj.size(); ++q) bj[q] = own_joint;
+  std::vector<float> bw = sw0;
+  EXPECT_EQ(reskin_enclosed(P, J, belted, V, rb.labels, bj, bw), changed);
+  int near = 0, below = 0;
+  for (long i = 0; i < V.rows(); ++i) {
+    if (!under_skirt(rb.labels[size_t(i)]) || !(V(i, 1) > P.hem_y)) continue;
+    if (V(i, 1) < P.top_y && V(i, 1) > P.top_y - 0.01) {
+      ++near;
+      float own = 0;
+      for (int k = 0; k < 4; ++k)
+        own += bj[4 * size_t(i) + k] == own_joint ? bw[4 * size_t(i) + k] : 0.f;
+      EXPECT_GT(own, 0.97f) << i;
+    } else if (V(i, 1) < P.top_y - belted.waist) {
+      ++below;
+      for (int k = 0; k < 4; ++k) {
+        EXPECT_EQ(bj[4 * size_t(i) + k], sj[4 * size_t(i) + k]) << i;
+        EXPECT_EQ(bw[4 * size_t(i) + k], sw[4 * size_t(i) + k]) << i;
+      }
+    }
+  }
+  EXPECT_GT(near, 0);
+  EXPECT_GT(below, 0);
 }
 
 // d/d follow of sum_i c_i . p_i through lbs_forward, against central differences; vertices with
