@@ -38,7 +38,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // CLI11 prints the message (or the help); a bad command line exits 1 like every other error,
+    // not with CLI11's own codes (105 for a value out of range, ...).
+    return app.exit(e) == 0 ? 0 : 1;
   } catch (const ks::Error& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 1;

@@ -118,6 +118,15 @@ TEST(ReconstructCli, TrainsSavesAndEvaluates) {
     const Avatar s3 = load_avatar(av3);
     EXPECT_GT(s3.num_gaussians(), default_body_model().num_vertices());
     EXPECT_EQ(s3.metadata.value("garment", ""), "skirt");
+    EXPECT_EQ(s3.metadata.at("garment_follow_profile").size(), 5u);  // the default's knots
+    // The profile's knots and the waistband are range-checked; nothing is written.
+    for (const char* bad : {" --garment-follow-knots 0", " --garment-waist -0.1"}) {
+      const std::string av4 = (dir / "bad.ksavatar").string();
+      test::CliRun r4 = run_cli("reconstruct " + (dir / "data").string() + " --out " + av4 +
+                                " --garment skirt --iters 1" + bad);
+      EXPECT_EQ(r4.status, 1) << bad;
+      EXPECT_FALSE(fs::exists(av4)) << bad;
+    }
   }
   fs::remove_all(dir);
 }
