@@ -229,6 +229,10 @@ double skirt_waist(const SkirtProxy& P, double waist, double y) {
   return waist > 0 ? smoothstep(0.0, waist, P.top_y - y) : 1.0;
 }
 
+double skirt_body_free(const SkirtProxy& P, const SkirtOptions& opt, double y) {
+  return skirt_free(P, y) * skirt_waist(P, opt.waist, y);
+}
+
 void skirt_blend(const SkirtJoints& joints, double follow, double t, double ts, double free,
                  const int* bj, const float* bw, int* j4, float* w4) {
   int sj[4];
@@ -275,7 +279,7 @@ int reskin_enclosed(const SkirtProxy& P, const SkirtJoints& joints, const SkirtO
     if (!skirt_encloses(P, p, labels[size_t(i)])) continue;
     int* j4 = &skin_joints[4 * size_t(i)];
     float* w4 = &skin_weights[4 * size_t(i)];
-    const double free = skirt_free(P, p.y()) * skirt_waist(P, opt.waist, p.y());
+    const double free = skirt_body_free(P, opt, p.y());
     if (free >= 1.0) {
       skirt_skin(P, joints, opt, p, j4, w4);
     } else {  // in the waistband (or wrapped): blended with the anchor's own weights

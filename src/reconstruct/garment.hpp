@@ -95,6 +95,9 @@ double skirt_free(const SkirtProxy& proxy, double y);
 // (SkirtOptions::waist): 0 at the rim rising (smoothstep) to 1 at `waist` metres below; 1 if
 // waist <= 0.
 double skirt_waist(const SkirtProxy& proxy, double waist, double y);
+// A body anchor's share of skirt skinning at height y under the skirt: skirt_free (wrap) times
+// skirt_waist (the waistband). The proxy's own vertices take skirt_free alone.
+double skirt_body_free(const SkirtProxy& proxy, const SkirtOptions& opt, double y);
 // The blend of a point's body skinning (bj, bw: 4 each) and the skirt's:
 // (1 - free) body + free skirt_weights(follow, t, ts), joints merged, the 4 largest kept,
 // renormalised.

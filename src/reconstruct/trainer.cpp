@@ -242,9 +242,7 @@ void add_garment(const BodyModel& model, const BodyState& rest_state,
     fit.g_in[size_t(i)] = 1.f;
     fit.g_t[size_t(i)] = float(t);
     fit.g_ts[size_t(i)] = float(t * side);
-    double free = skirt_free(P, p.y());
-    if (i < n0) free *= skirt_waist(P, so.waist, p.y());
-    fit.g_free[size_t(i)] = float(free);
+    fit.g_free[size_t(i)] = float(i < n0 ? skirt_body_free(P, so, p.y()) : skirt_free(P, p.y()));
     if (i < n0 || cand.empty() || !so.wrap) continue;  // body weights only blend in with wrap
     double best = 1e30;
     int bi = cand.front();
