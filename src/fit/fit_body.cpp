@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <numeric>
 
+#include "body/skin_weights.hpp"
 #include "core/error.hpp"
 
 namespace ks::fit {
@@ -59,18 +60,8 @@ BodyData make_body_data(const BodyModel& model, int num_betas, int vertex_stride
     d.V0.row(m) = model.v_template.row(v);
     for (int k = 0; k < 3; ++k)
       for (int b = 0; b < L.num_betas; ++b) d.Vdirs(3 * m + k, b) = model.shapedirs(3 * v + k, b);
-    // Top-4 skin weights, renormalised.
-    std::vector<int> order(static_cast<size_t>(J));
-    std::iota(order.begin(), order.end(), 0);
-    std::partial_sort(order.begin(), order.begin() + std::min(4, J), order.end(),
-                      [&](int a, int b) { return model.weights(v, a) > model.weights(v, b); });
-    double sum = 0;
-    for (int q = 0; q < 4 && q < J; ++q) sum += model.weights(v, order[size_t(q)]);
-    for (int q = 0; q < 4; ++q) {
-      d.skin_joint[size_t(m)][size_t(q)] = q < J ? order[size_t(q)] : 0;
-      d.skin_weight[size_t(m)][size_t(q)] =
-          (q < J && sum > 0) ? model.weights(v, order[size_t(q)]) / sum : 0.0;
-    }
+    top_k_skin_weights(model.weights.row(v), 4, d.skin_joint[size_t(m)].data(),
+                       d.skin_weight[size_t(m)].data());
   }
   return d;
 }

@@ -9,7 +9,7 @@
 
 #include "body/body_model.hpp"
 #include "body/keypoints.hpp"
-#include "core/rotation.hpp"
+#include "body/posing.hpp"
 
 namespace ks::fit {
 
@@ -107,28 +107,19 @@ void forward(const BodyData& d, const T* x, std::vector<Eigen::Matrix<T, 3, 1>>&
       for (int b = 0; b < L.num_betas; ++b) v += T(d.Jdirs(3 * j + k, b)) * x[L.betas + b];
       rest[size_t(j)](k) = v;
     }
-  std::vector<Eigen::Matrix<T, 3, 3>> Rw(static_cast<size_t>(J));
-  joints.resize(size_t(J));
-  for (int j = 0; j < J; ++j) {
-    Eigen::Matrix<T, 3, 3> R;
-    if (j == 0) {
-      R = axis_angle_to_matrix<T>(
-          Eigen::Matrix<T, 3, 1>(x[L.orient], x[L.orient + 1], x[L.orient + 2]));
-    } else if (j <= L.pose_joints) {
-      const T* a = x + L.pose + 3 * (j - 1);
-      R = axis_angle_to_matrix<T>(Eigen::Matrix<T, 3, 1>(a[0], a[1], a[2]));
-    } else {
-      R.setIdentity();
+  // The one forward kinematics (body/posing.hpp); hands and face at rest.
+  MatrixX<T> rest_m(J, 3), pose(J, 3);
+  for (int jj = 0; jj < J; ++jj)
+    for (int k = 0; k < 3; ++k) {
+      rest_m(jj, k) = rest[size_t(jj)](k);
+      pose(jj, k) = jj == 0               ? x[L.orient + k]
+                    : jj <= L.pose_joints ? x[L.pose + 3 * (jj - 1) + k]
+                                          : T(0);
     }
-    const int p = d.parents[size_t(j)];
-    if (p < 0) {
-      Rw[size_t(j)] = R;
-      joints[size_t(j)] = rest[size_t(j)];
-    } else {
-      Rw[size_t(j)] = Rw[size_t(p)] * R;
-      joints[size_t(j)] = Rw[size_t(p)] * (rest[size_t(j)] - rest[size_t(p)]) + joints[size_t(p)];
-    }
-  }
+  const PosedSkeleton<T> sk =
+      forward_kinematics<T>(d.parents, rest_m, pose, Eigen::Matrix<T, 3, 1>::Zero());
+  const std::vector<Eigen::Matrix<T, 3, 3>>& Rw = sk.rotations;
+  joints = sk.origins;
   if (vertices) skin_subset(d, x, rest, Rw, joints, *vertices, only);
   if (keypoints) {
     keypoints->resize(kBody25Count);

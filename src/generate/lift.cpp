@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include "body/keypoints.hpp"
 #include "body/parts.hpp"
+#include "body/skin_weights.hpp"
 
 #include "core/error.hpp"
 #include "fit/silhouette.hpp"
@@ -44,55 +45,6 @@ Eigen::Vector3d sample_rgb(const Image& img, double u, double v) {
 bool in_mask(const Image& m, double u, double v) {
   const int x = int(std::floor(u)), y = int(std::floor(v));
   return x >= 0 && y >= 0 && x < m.width && y < m.height && m.at(x, y, 0) >= 0.5f;
-}
-
-// The textured person's skeleton part: a rest mesh on the body with skinning, no colours yet.
-SynthPerson body_person(const SubjectFit& fit, int levels) {
-  const BodyModel& m = *fit.model;
-  if (int(m.part_labels.size()) != m.num_vertices())
-    throw Error("lift: the body model has no part labels");
-  SynthPerson P;
-  P.model = fit.model;
-  P.body_model = fit.body_model;
-  P.betas = fit.params.betas;
-  BodyParams zero;
-  zero.betas = fit.params.betas;
-  zero.body_pose = Eigen::VectorXd::Zero(3 * m.num_body_pose_joints());
-  const BodyState st = body_forward(m, zero);
-  const Subdivision sd = subdivide(TriMesh{st.rest_vertices, m.faces}, levels, true);
-  P.rest = sd.mesh.V;
-  P.faces = sd.mesh.F;
-  P.stencil = sd.S;
-  P.labels = carry_labels(sd.S, m.part_labels);
-  const Eigen::MatrixXd W = sd.S * m.weights;
-  const long N = W.rows();
-  P.skin_joints.resize(N, 4);
-  P.skin_weights.resize(N, 4);
-  for (long i = 0; i < N; ++i) {
-    std::array<int, 4> best{0, 0, 0, 0};
-    std::array<double, 4> bw{-1, -1, -1, -1};
-    for (long j = 0; j < W.cols(); ++j) {
-      const double w = W(i, j);
-      for (int k = 0; k < 4; ++k)
-        if (w > bw[size_t(k)]) {
-          for (int q = 3; q > k; --q) {
-            bw[size_t(q)] = bw[size_t(q - 1)];
-            best[size_t(q)] = best[size_t(q - 1)];
-          }
-          bw[size_t(k)] = w;
-          best[size_t(k)] = int(j);
-          break;
-        }
-    }
-    double s = 0;
-    for (int k = 0; k < 4; ++k) s += std::max(0.0, bw[size_t(k)]);
-    for (int k = 0; k < 4; ++k) {
-      P.skin_joints(i, k) = best[size_t(k)];
-      P.skin_weights(i, k) = s > 0 ? std::max(0.0, bw[size_t(k)]) / s : 0.0;
-    }
-  }
-  P.colors = Eigen::MatrixXd::Constant(N, 3, 0.5);
-  return P;
 }
 
 MeshRenderOutput render_depth(const Eigen::MatrixXd& V, const Eigen::MatrixXi& F, const Camera& cam,
@@ -266,7 +218,8 @@ SynthPerson lift_person(const Image& photo, const Image& mask, const SubjectFit&
   if (mask.width != photo.width || mask.height != photo.height)
     throw Error("lift: the mask's size differs from the photo's");
   const BodyModel& model = *fit.model;
-  SynthPerson P = body_person(fit, o.subdivision_levels);
+  SynthPerson P =
+      body_mesh_person(fit.model, fit.body_model, fit.params.betas, o.subdivision_levels);
   const long N = P.rest.rows();
   const Eigen::MatrixXd V0 = P.rest;
   const Eigen::MatrixXd rest_normals = vertex_normals(V0, P.faces);

@@ -25,6 +25,33 @@ BodyParams synth_params(const SynthPerson& person, const BodyParams& pose) {
   return p;
 }
 
+SynthPerson body_mesh_person(std::shared_ptr<const BodyModel> model, const std::string& body_model,
+                             const Eigen::VectorXd& betas, int levels) {
+  if (!model) throw Error("body mesh: no body model");
+  const BodyModel& m = *model;
+  if (int(m.part_labels.size()) != m.num_vertices())
+    throw Error("body mesh: the body model has no part labels");
+  SynthPerson P;
+  P.model = model;
+  P.body_model = body_model;
+  P.betas = betas;
+  BodyParams zero;
+  zero.betas = betas;
+  zero.body_pose = Eigen::VectorXd::Zero(3 * m.num_body_pose_joints());
+  const BodyState st = body_forward(m, zero);
+  const Subdivision sd = subdivide(TriMesh{st.rest_vertices, m.faces}, levels, true);
+  P.rest = sd.mesh.V;
+  P.faces = sd.mesh.F;
+  P.stencil = sd.S;
+  P.labels = carry_labels(sd.S, m.part_labels);
+  const Eigen::MatrixXd W = sd.S * m.weights;
+  P.skin_joints.resize(W.rows(), 4);
+  P.skin_weights.resize(W.rows(), 4);
+  top_k_skin_weights(W, 4, P.skin_joints.data(), P.skin_weights.data());
+  P.colors = Eigen::MatrixXd::Constant(W.rows(), 3, 0.5);
+  return P;
+}
+
 SynthPerson make_synth_person(std::shared_ptr<const BodyModel> model, const std::string& body_model,
                               uint64_t seed, const SynthOptions& options) {
   if (!model) throw Error("synth: no body model");
@@ -50,17 +77,17 @@ SynthPerson make_synth_person(std::shared_ptr<const BodyModel> model, const std:
   zero.betas = P.betas;
   zero.body_pose = Eigen::VectorXd::Zero(3 * m.num_body_pose_joints());
   const BodyState st = body_forward(m, zero);
-  TriMesh base{st.rest_vertices, m.faces};
-  Subdivision sd = subdivide(base, options.subdivision_levels, true);
-  P.faces = sd.mesh.F;
-  P.stencil = sd.S;
-  P.labels = carry_labels(sd.S, m.part_labels);
-  const Eigen::MatrixXd W = sd.S * m.weights;
-  P.skin_joints.resize(W.rows(), 4);
-  P.skin_weights.resize(W.rows(), 4);
-  top_k_skin_weights(W, 4, P.skin_joints.data(), P.skin_weights.data());
+  {
+    SynthPerson body = body_mesh_person(model, body_model, P.betas, options.subdivision_levels);
+    P.faces = std::move(body.faces);
+    P.stencil = std::move(body.stencil);
+    P.labels = std::move(body.labels);
+    P.skin_joints = std::move(body.skin_joints);
+    P.skin_weights = std::move(body.skin_weights);
+    P.rest = std::move(body.rest);
+  }
 
-  const Eigen::MatrixXd& V0 = sd.mesh.V;
+  const Eigen::MatrixXd V0 = P.rest;
   const long N = V0.rows();
   const Eigen::MatrixXd normals = vertex_normals(V0, P.faces);
   const Landmarks L = find_landmarks(V0, P.labels, st.rest_joints);

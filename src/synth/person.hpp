@@ -13,11 +13,11 @@
 #include <vector>
 
 #include "body/body_model.hpp"
+#include "body/keypoints.hpp"
 #include "body/lbs.hpp"
 #include "core/camera.hpp"
 #include "meshrender/meshrender.hpp"
 #include "synth/appearance.hpp"
-#include "body/keypoints.hpp"
 
 namespace ks {
 
@@ -55,6 +55,11 @@ struct PosedPerson {
 
 // Builds a person on `model` (`body_model` is the name written to datasets: "default" or a
 // path). Throws ks::Error if the model does not have SMPL's first 22 joints.
+// The bare body as a person mesh: the shaped rest body (betas), Loop-subdivided `levels` times,
+// part labels and top-4 skin weights carried by the stencil, grey. The synth dresses it; the
+// lift generator colours it from a photo.
+SynthPerson body_mesh_person(std::shared_ptr<const BodyModel> model, const std::string& body_model,
+                             const Eigen::VectorXd& betas, int levels);
 SynthPerson make_synth_person(std::shared_ptr<const BodyModel> model, const std::string& body_model,
                               uint64_t seed, const SynthOptions& options = {});
 // Poses the person (pose.betas is ignored: the person's betas are used).
