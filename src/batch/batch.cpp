@@ -456,7 +456,8 @@ int run_batch(const Manifest& m, const BatchOptions& o, std::ostream& out) {
   mark_submitted(out_dir, m, rows, "slurm", job);
   record_run(out_dir, m, rows, "slurm", job);
   out << "batch: submitted " << path << " as Slurm job " << job << " (" << rows.size()
-      << " array tasks); `kinesplat batch status " << out_dir << "` to follow it\n";
+      << (rows.size() == 1 ? " array task" : " array tasks") << "); `kinesplat batch status "
+      << out_dir << "` to follow it\n";
   return 0;
 }
 
