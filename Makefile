@@ -10,7 +10,7 @@ DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libop
 # The perceive helper (Node): its packages pinned by its package-lock.json, its models by models.json.
 PERCEIVE_HELPER := helpers/perceive
 
-.PHONY: deps node perceive-helper viewer build test test-slurm demo bench format clean
+.PHONY: deps node perceive-helper viewer build test test-slurm demo demo-true-frames bench format clean
 
 deps:
 	@missing=""; for p in $(DEB_PACKAGES); do \
@@ -63,6 +63,10 @@ test-slurm: build
 
 demo: deps build
 	./scripts/demo.sh $(BUILD_DIR)/kinesplat $(DEMO_DIR)
+
+# The avatar from the synth's true multi-view frames (no photo front end).
+demo-true-frames: deps build
+	./scripts/demo_true_frames.sh $(BUILD_DIR)/kinesplat $(DEMO_DIR)-true-frames
 
 # The rasterizer benchmark at the project's reference size (the README's figures), then the
 # Google Benchmark programs (rasterizer, decoder MLPs, the fit's Adam step and triplane).

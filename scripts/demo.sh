@@ -1,23 +1,19 @@
 #!/usr/bin/env bash
-# kinesplat demo (what `make demo` runs): the open default body posed and written as OBJ; a synthetic
-# clothed person with exact ground truth; an avatar reconstructed from its 64-frame pose-space turn;
-# evaluation on 32 held-out frames (8 novel poses x 4 views, at full resolution); a turntable video,
-# a motion video and a rest-pose 3DGS .ply.
+# kinesplat demo (what `make demo` runs): one photo -> an animatable avatar. A synthetic clothed
+# person with exact ground truth is made; only its photo (photo.png) goes into `kinesplat create`
+# (perceive -> fit -> sample -> generate (lift) -> augment -> reconstruct -> videos); the avatar is
+# then evaluated on the person's held-out test split (8 novel poses x 4 views the photo never saw,
+# aligned through the fit; front / side / back reported apart), and the figures printed.
+# The true-frames path (an avatar from the synth's 64 true training views) is
+# scripts/demo_true_frames.sh (`make demo-true-frames`).
 # Usage: scripts/demo.sh [path/to/kinesplat] [output dir]
-# Tunables (environment): KS_DEMO_ITERS (reconstruct steps, 1600), KS_DEMO_SUBDIVIDE (template Loop
-# levels, 2), KS_DEMO_SCALE (training resolution, 1 = the images'), KS_DEMO_SIZE (video size WxH,
-# 384x512), KS_DEMO_MOTION (second video, dance). A quick look (about a minute of training):
-# KS_DEMO_SUBDIVIDE=1 KS_DEMO_SCALE=0.5. Paper-sized setting (an hour or more on 2 cores):
-# KS_DEMO_ITERS=2000.
+# Environment: KS_DEMO_SEED (synth person, 0), KS_DEMO_ITERS (reconstruct steps, create's default),
+# KS_DEMO_PHOTO (your own photo instead of the synth's: no evaluation then).
 set -euo pipefail
 
 KS=${1:-build/kinesplat}
 OUT=${2:-demo-out}
-ITERS=${KS_DEMO_ITERS:-1600}
-SUBDIV=${KS_DEMO_SUBDIVIDE:-2}
-TRAIN_SCALE=${KS_DEMO_SCALE:-1}
-SIZE=${KS_DEMO_SIZE:-384x512}
-MOTION=${KS_DEMO_MOTION:-dance}
+SEED=${KS_DEMO_SEED:-0}
 
 if [ ! -x "$KS" ]; then
   echo "demo: $KS not found or not executable (run 'make build' first)" >&2
@@ -27,57 +23,38 @@ mkdir -p "$OUT"
 T0=$(date +%s)
 step() { echo; echo "== demo [$(( $(date +%s) - T0 ))s] $*"; }
 
-BODY="$OUT/body"
-SUBJECT="$OUT/subject"
-AVATAR="$OUT/avatar.ksavatar"
+ITERS=()
+[ -n "${KS_DEMO_ITERS:-}" ] && ITERS=(--iters "$KS_DEMO_ITERS")
 
-# 0. The open default body model, posed (OBJ, vertices in model order).
-step "body: default model -> $BODY (rest, walk, wave)"
-mkdir -p "$BODY"
-"$KS" body make-default --out "$BODY/default_body.npz"
-"$KS" body info default > "$BODY/default_body_info.json"
-"$KS" body pose default --out "$BODY/rest.obj" --joints "$BODY/rest_joints.json"
-# body_pose: 3 values per joint 1..23 (left_hip, right_hip, spine1, left_knee, ...).
-cat > "$BODY/pose_walk.json" <<'JSON'
-{"betas": [0.5, 0.3], "global_orient": [0.0, 0.3, 0.0],
- "body_pose": [-0.5,0,0, 0.4,0,0, 0,0,0,  0.6,0,0, 0.3,0,0, 0,0,0,  0,0,0, 0,0,0, 0,0,0,
-               0,0,0, 0,0,0, 0,0,0,  0,0,0, 0,0,0, 0,0,0,  0,0,-1.1, 0,0,1.1, 0,-0.6,0,
-               0,0.6,0, 0,0,0, 0,0,0,  0,0,0, 0,0,0]}
-JSON
-"$KS" body pose default --params "$BODY/pose_walk.json" --out "$BODY/walk.obj"
-cat > "$BODY/pose_wave.json" <<'JSON'
-{"betas": [-0.5, 1.0, 0, 0, 0, 0, 0.5],
- "body_pose": [0,0,0.2, 0,0,-0.2, 0,0,0,  0,0,0, 0,0,0, 0,0,0,  0,0,0, 0,0,0, 0,0,0,
-               0,0,0, 0,0,0, 0,0,0,  0,0,0, 0,0,0, 0,0.5,0,  0,0,0.9, 0,0,0, 0,-1.2,0,
-               0,0,0, 0,0,0, 0,0,0,  0,0,0, 0,0,0]}
-JSON
-"$KS" body pose default --params "$BODY/pose_wave.json" --out "$BODY/wave_subdiv1.obj" --subdivide 1
+if [ -n "${KS_DEMO_PHOTO:-}" ]; then
+  step "create $KS_DEMO_PHOTO -> $OUT/create"
+  "$KS" create "$KS_DEMO_PHOTO" --out "$OUT/create" "${ITERS[@]}"
+  exit 0
+fi
 
-# 1. A synthetic clothed person with exact ground truth (train/ and test/ datasets).
-step "synth --seed 0 -> $SUBJECT"
-"$KS" synth --seed 0 --out "$SUBJECT"
+SYNTH="$OUT/synth"
+step "synth --seed $SEED -> $SYNTH (photo.png, and the truth: subject.json, test/)"
+if [ -f "$SYNTH/test/dataset.json" ] && [ -f "$SYNTH/photo.png" ]; then
+  echo "demo: $SYNTH exists, kept"
+else
+  "$KS" synth --seed "$SEED" --out "$SYNTH"
+fi
 
-# 2. Reconstruct the avatar from the training views (the stand-in for a generator's output).
-step "reconstruct $SUBJECT/train -> $AVATAR ($ITERS steps, $SUBDIV Loop levels, scale $TRAIN_SCALE, density control gpdc)"
-"$KS" reconstruct "$SUBJECT/train" --out "$AVATAR" --iters "$ITERS" --subdivide "$SUBDIV" \
-  --scale "$TRAIN_SCALE" --density gpdc
+step "create $SYNTH/photo.png -> $OUT/create (the photo alone)"
+"$KS" create "$SYNTH/photo.png" --out "$OUT/create" "${ITERS[@]}"
 
-# 3. Evaluate on the held-out views (novel poses and views), full resolution.
-step "evaluate $AVATAR on $SUBJECT/test"
-"$KS" evaluate "$AVATAR" "$SUBJECT/test" --out "$OUT/metrics.json" --renders "$OUT/eval"
+step "evaluate the avatar on $SYNTH/test (novel poses and views; aligned through the fit)"
+"$KS" evaluate "$OUT/create/avatar.ksavatar" "$SYNTH/test" \
+  --fit "$OUT/create/subject/fit.json" --truth "$SYNTH/subject.json" \
+  --out "$OUT/metrics.json" --renders "$OUT/eval" -q | tail -7
 
-# 4. Videos: a turntable (the avatar turns 360 degrees in place, fixed camera) and a motion.
-step "animate turntable -> $OUT/turntable.mp4"
-"$KS" animate "$AVATAR" --motion turn --camera front --size "$SIZE" --out "$OUT/turntable.mp4"
-step "animate $MOTION -> $OUT/$MOTION.mp4"
-"$KS" animate "$AVATAR" --motion "$MOTION" --camera front --size "$SIZE" --out "$OUT/$MOTION.mp4"
-
-step "export rest-pose .ply -> $OUT/avatar.ply"
-"$KS" export "$AVATAR" --out "$OUT/avatar.ply"
+step "fit against the truth"
+"$KS" evaluate-fit "$OUT/create/subject/fit.json" "$SYNTH/subject.json" --out "$OUT/fit_metrics.json"
 
 echo
 echo "== demo done in $(( $(date +%s) - T0 ))s. Results in $OUT/:"
-for f in "$BODY" "$SUBJECT" "$AVATAR" "$OUT/metrics.json" "$OUT/eval" "$OUT/turntable.mp4" \
-         "$OUT/$MOTION.mp4" "$OUT/avatar.ply"; do
+for f in "$SYNTH/photo.png" "$OUT/create/subject/fit_overlay.png" "$OUT/create/prior/refined" \
+         "$OUT/create/avatar.ksavatar" "$OUT/create/turntable.mp4" "$OUT/create/dance.mp4" \
+         "$OUT/metrics.json" "$OUT/fit_metrics.json" "$OUT/eval"; do
   echo "  $f"
 done

@@ -1,133 +1,59 @@
-// `kinesplat animate`: pose an avatar along a motion and render frames (PNG), an MP4
-// (io/video.hpp) and optionally per-frame 3DGS .ply files; the cameras come from
-// animate/framing.hpp.
-#include <chrono>
-#include <cmath>
+// `kinesplat animate`: pose an avatar along a motion and render frames (PNG), an MP4 and
+// optionally per-frame 3DGS .ply files (animate/playback.hpp).
+#include <algorithm>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
-#include <sstream>
 
-#include "animate/framing.hpp"
+#include "animate/playback.hpp"
 #include "avatar/avatar.hpp"
-#include "avatar/pose.hpp"
 #include "cli/parse.hpp"
 #include "cli/registry.hpp"
-#include "core/camera.hpp"
 #include "core/error.hpp"
-#include "core/fileio.hpp"
-#include "core/progress.hpp"
-#include "gaussians/ply.hpp"
-#include "io/image_io.hpp"
-#include "io/video.hpp"
-#include "motion/motion.hpp"
-#include "raster/rasterizer.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
+// The defaults are the library's (PlaybackOptions).
 struct AnimateArgs {
-  std::string avatar, motion = "turn", out, camera = "front", size = "512x768",
+  ks::PlaybackOptions d;
+  std::string avatar, motion = d.motion, out, camera = d.camera,
+                      size = std::to_string(d.width) + "x" + std::to_string(d.height),
                       background = "1,1,1";
-  int frames = 0;
-  bool ply = false;
-  float backface_cull = 1.f;  // off; 0.4 is a good trade on close-fitting clothes
+  int frames = d.frames;
+  bool ply = d.ply;
+  float backface_cull = d.backface_cull;  // 1 = off; 0.4 is a good trade on close-fitting clothes
 };
 
 using namespace ks;
 using namespace ks::cli;
 
 void run_animate(const AnimateArgs& args) {
-  int W = 0, H = 0;
-  parse_image_size(args.size, "--size", W, H);
-  RasterSettings rs;
-  parse_rgb(args.background, "--background", rs.background);
-  if (args.frames < 0) throw Error("--frames must be >= 0");
-  if (!(args.backface_cull >= 0.f && args.backface_cull <= 1.f))
-    throw Error("--backface-cull: expected a cosine in [0, 1] (1 = off), got " +
-                std::to_string(args.backface_cull));
+  PlaybackOptions o;
+  parse_image_size(args.size, "--size", o.width, o.height);
+  parse_rgb(args.background, "--background", o.background);
+  o.motion = args.motion;
+  o.camera = args.camera;
+  o.frames = args.frames;
+  o.ply = args.ply;
+  o.backface_cull = args.backface_cull;
+  if (o.frames < 0) throw Error("--frames must be >= 0");
   const Avatar avatar = load_avatar(args.avatar);
-  const Motion motion = load_motion(args.motion, args.frames);
-  if (motion.frames.empty()) throw Error("motion \"" + args.motion + "\" has no frames");
-  const int F = int(motion.frames.size());
-  Eigen::Vector3d lo, hi;
-  motion_bounds(avatar, motion, lo, hi);
-  const std::vector<Camera> cams = playback_cameras(args.camera, lo, hi, W, H, F);
-
-  const bool mp4 = fs::path(args.out).extension() == ".mp4";
-  if (mp4 && find_ffmpeg().empty())
-    throw Error("writing " + args.out +
-                " needs ffmpeg, which was not found on PATH (install it, e.g. "
-                "`apt-get install "
-                "ffmpeg`, or give --out a directory to get PNG frames)");
-  // Frames go to a staging directory that appears only when complete.
-  const std::string frame_dir =
-      mp4 ? (fs::path(args.out).parent_path() / (fs::path(args.out).stem().string() + "_frames"))
-                .string()
-          : args.out;
-  if (!fs::path(frame_dir).parent_path().empty())
-    fs::create_directories(fs::path(frame_dir).parent_path());
-  StagedDir staged(frame_dir);
-  std::printf(
-      "animate: %d Gaussians, motion \"%s\" (%d frames at %.1f fps), "
-      "camera %s, %dx%d\n",
-      avatar.num_gaussians(), motion.name.c_str(), F, motion.fps, args.camera.c_str(), W, H);
-  // Back-face culling needs the template's normals at the anchors; the per-frame .ply files
-  // keep every Gaussian, so --ply turns it off.
-  const bool want_cull = args.backface_cull < 1.f && !args.ply;
-  const std::vector<float> normals =
-      want_cull ? avatar_anchor_normals(avatar) : std::vector<float>{};
-  const bool cull_on = !normals.empty();
-  if (want_cull && !cull_on)
-    std::printf(
-        "animate: the avatar's template is not one vertex per Gaussian; no back-face culling\n");
-  BackfaceCull cull;
-  cull.normals = &normals;
-  cull.threshold = args.backface_cull;
-  Gaussians g;
-  RasterResult rr;
-  Progress prog("animate", F);
-  double render_s = 0;
-  for (int f = 0; f < F; ++f) {
-    const auto t0 = std::chrono::steady_clock::now();
-    cull.eye = cams[f].centre();
-    pose_avatar(avatar, motion.frames[f], g, cull_on ? &cull : nullptr);
-    rasterize_forward(g, cams[f], rs, rr);
-    render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    char name[32];
-    std::snprintf(name, sizeof name, "%04d", f);
-    write_png(staged.path(std::string(name) + ".png"), rr.color);
-    if (args.ply) write_ply(staged.path(std::string(name) + ".ply"), g);
-    prog.update(f + 1);
-  }
-  prog.finish();
-  if (mp4) {
-    std::vector<std::string> pngs;
-    for (int f = 0; f < F; ++f) {
-      char name[32];
-      std::snprintf(name, sizeof name, "%04d.png", f);
-      pngs.push_back(staged.path(name));
-    }
-    VideoOptions vo;
-    vo.fps = motion.fps;
-    write_mp4_from_pngs(args.out, pngs, vo);
-    if (args.ply) {
-      staged.commit();
+  const PlaybackReport r = render_playback(avatar, args.out, o);
+  if (fs::path(args.out).extension() == ".mp4") {
+    if (args.ply)
       std::printf("animate: wrote %s and per-frame PNG/.ply files in %s/\n", args.out.c_str(),
-                  frame_dir.c_str());
-    } else {
+                  r.frames_dir.c_str());
+    else
       std::printf("animate: wrote %s\n", args.out.c_str());
-    }
   } else {
-    staged.commit();
-    std::printf("animate: wrote %d frames%s to %s/\n", F, args.ply ? " (PNG + .ply)" : " (PNG)",
-                args.out.c_str());
+    std::printf("animate: wrote %d frames%s to %s/\n", r.frames,
+                args.ply ? " (PNG + .ply)" : " (PNG)", args.out.c_str());
   }
   char cull_note[32] = "off";
-  if (cull_on) std::snprintf(cull_note, sizeof cull_note, "at cos > %.2f", args.backface_cull);
+  if (r.culled) std::snprintf(cull_note, sizeof cull_note, "at cos > %.2f", args.backface_cull);
   std::printf("animate: pose + render %.1f ms per frame (%.1f fps), back-face culling %s\n",
-              1e3 * render_s / F, F / std::max(render_s, 1e-9), cull_note);
+              r.render_ms, 1e3 / std::max(r.render_ms, 1e-9), cull_note);
 }
 
 ks::cli::CommandGroup group(70, [](CLI::App& app) {

@@ -12,6 +12,7 @@
 #include "fit/fit_file.hpp"
 #include "fit/keypoint_calibration.hpp"
 #include "fit/overlay.hpp"
+#include "fit/run_fit.hpp"
 #include "io/image_io.hpp"
 #include "perceive/openpose.hpp"
 
@@ -52,28 +53,18 @@ ks::cli::CommandGroup group(24, [](CLI::App& app) {
   sub->add_flag("--no-silhouette", args->no_silhouette, "Fit to the keypoints only");
   sub->add_flag("--quiet,-q", args->quiet, "No stage lines");
   sub->callback([args] {
-    ks::FitOptions opt = args->opt;
-    opt.use_silhouette = !args->no_silhouette;
-    opt.progress = !args->quiet;
-    opt.keypoints = args->keypoints == "joints" ? ks::KeypointConvention::kJoints
-                                                : ks::KeypointConvention::kCoco;
-    const ks::FitInput in = ks::load_fit_input(args->subject);
-    const ks::BodyModel model = ks::load_body_model(args->body);
-    const std::string model_name =
-        args->body == "default" ? args->body : fs::absolute(args->body).lexically_normal().string();
-    const ks::FitResult r = ks::fit_body(model, in, opt);
-    const fs::path dir(args->subject);
-    if (args->overlay) {
-      const ks::Image photo = ks::read_image((dir / "image.png").string(), 3);
-      ks::write_png((dir / "fit_overlay.png").string(),
-                    ks::fit_overlay(photo, model, r.params, r.camera, in.keypoints, opt.keypoints));
-    }
-    ks::save_fit((dir / "fit.json").string(), model_name, r,
-                 {{"silhouette", opt.use_silhouette && !in.mask.empty()},
-                  {"keypoint_convention", args->keypoints}});
-    std::printf("fit: %s, %s the camera, focal %.1f px, %.1f s; wrote %s\n", model.kind_name(),
+    ks::FitStageOptions so;
+    so.body = args->body;
+    so.fit = args->opt;
+    so.fit.use_silhouette = !args->no_silhouette;
+    so.fit.progress = !args->quiet;
+    so.fit.keypoints = args->keypoints == "joints" ? ks::KeypointConvention::kJoints
+                                                   : ks::KeypointConvention::kCoco;
+    so.overlay = args->overlay;
+    const ks::FitResult r = ks::run_fit(args->subject, so);
+    std::printf("fit: %s the camera, focal %.1f px, %.1f s; wrote %s\n",
                 r.facing_camera ? "facing" : "turned away from", r.camera.fx, r.seconds,
-                (dir / "fit.json").string().c_str());
+                (fs::path(args->subject) / "fit.json").string().c_str());
   });
 
   struct EvalArgs {

@@ -11,12 +11,8 @@
 #include "dataset/dataset.hpp"
 #include "evaluate/evaluate.hpp"
 #include "reconstruct/density.hpp"
+#include "reconstruct/reconstruct.hpp"
 #include "reconstruct/trainer.hpp"
-
-#if __has_include("reconstruct/density_ops.hpp")
-#include "reconstruct/density_ops.hpp"
-#define KS_HAVE_DENSITY_FACTORY 1
-#endif
 
 namespace {
 
@@ -32,8 +28,10 @@ const char* laplacian_name(ks::LaplacianMode m) {
 
 // The library's TrainOptions hold the defaults; the flags only override them.
 struct Args {
-  ks::TrainOptions opt;
-  std::string dataset, out, density = "off", eval_dataset, eval_out;
+  ks::ReconstructOptions ro;
+  ks::TrainOptions& opt = ro.train;
+  std::string& density = ro.density;
+  std::string dataset, out, eval_dataset, eval_out;
   std::string laplacian = laplacian_name(opt.loss.laplacian);
   std::string garment = garment_name(opt.garment.mode);
   bool quiet = false;
@@ -183,37 +181,11 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
       for (const char* o : {"--skin-from", "--w-skin-prior", "--w-lap-skin"})
         if (sub->count(o) > 0) throw ks::Error(std::string(o) + " needs --lr-skin > 0");
     a.opt.progress = !a.quiet;
-#ifndef KS_HAVE_DENSITY_FACTORY
-    if (a.density != "off")
-      throw ks::Error("--density " + a.density +
-                      ": density control is not built into this version (use --density off)");
-#endif
-    const ks::Dataset ds = ks::Dataset::load(a.dataset);
-    const ks::BodyModel model = ks::load_dataset_body_model(ds, a.dataset);
-    const auto frames = ks::load_frames(ds, a.dataset, a.opt.scale, a.opt.perturb, a.opt.seed);
-    std::vector<ks::LoadedFrame> fine_frames;
-    if (a.opt.fine_from < 1.f) {
-      fine_frames = ks::load_frames(ds, a.dataset, a.opt.fine_scale, a.opt.perturb, a.opt.seed);
-      a.opt.fine_frames = &fine_frames;
-    }
-    std::unique_ptr<ks::DensityControl> density;
-#ifdef KS_HAVE_DENSITY_FACTORY
-    if (a.density != "off") {
-      // Gradient thresholds are in training-image pixel units: pass the real training width.
-      ks::DensityOptions dopt;
-      dopt.image_width = frames.empty() ? 0 : frames.front().image.width;
-      density = ks::make_density_control(a.density, dopt);
-      a.opt.density = density.get();
-    }
-#endif
-    ks::TrainReport rep;
-    ks::Avatar av = ks::train_avatar(model, ds, frames, a.opt, &rep);
-    av.metadata["density"] = a.density;
+    ks::Avatar av;
+    const ks::TrainReport rep = ks::reconstruct_avatar(a.dataset, a.out, a.ro, &av);
     if (!rep.garment_summary.empty())
       std::printf("%s%s\n", rep.garment_summary.c_str(),
                   rep.garment ? ("; follow " + rep.garment_follow_profile).c_str() : "");
-    av.metadata["fine_scale"] = a.opt.fine_from < 1.f ? a.opt.fine_scale : a.opt.scale;
-    ks::save_avatar(a.out, av);
     std::printf("avatar: %s (%d Gaussians)\n", a.out.c_str(), av.num_gaussians());
     std::printf("train: %d iterations in %.1f s (%.1f ms/iteration), train PSNR %.2f dB\n",
                 rep.iterations, rep.seconds, rep.ms_per_iteration, rep.final_psnr);

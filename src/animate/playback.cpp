@@ -1,0 +1,104 @@
+#include "animate/playback.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+
+#include "animate/framing.hpp"
+#include "avatar/pose.hpp"
+#include "core/error.hpp"
+#include "core/fileio.hpp"
+#include "core/progress.hpp"
+#include "gaussians/ply.hpp"
+#include "io/image_io.hpp"
+#include "io/video.hpp"
+#include "motion/motion.hpp"
+#include "raster/rasterizer.hpp"
+
+namespace ks {
+
+namespace fs = std::filesystem;
+
+PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
+                               const PlaybackOptions& o) {
+  if (o.width <= 0 || o.height <= 0 || o.width > 16384 || o.height > 16384)
+    throw Error("playback: image size " + std::to_string(o.width) + "x" + std::to_string(o.height) +
+                " out of range");
+  if (o.frames < 0) throw Error("--frames must be >= 0");
+  if (!(o.backface_cull >= 0.f && o.backface_cull <= 1.f))
+    throw Error("--backface-cull: expected a cosine in [0, 1] (1 = off), got " +
+                std::to_string(o.backface_cull));
+  RasterSettings rs;
+  std::copy(o.background, o.background + 3, rs.background);
+  const Motion motion = load_motion(o.motion, o.frames);
+  if (motion.frames.empty()) throw Error("motion \"" + o.motion + "\" has no frames");
+  const int F = int(motion.frames.size());
+  Eigen::Vector3d lo, hi;
+  motion_bounds(avatar, motion, lo, hi);
+  const std::vector<Camera> cams = playback_cameras(o.camera, lo, hi, o.width, o.height, F);
+
+  const bool mp4 = fs::path(out).extension() == ".mp4";
+  if (mp4 && find_ffmpeg().empty())
+    throw Error("writing " + out +
+                " needs ffmpeg, which was not found on PATH (install it, e.g. `apt-get install "
+                "ffmpeg`, or give a directory to get PNG frames)");
+  // Frames go to a staging directory that appears only when complete.
+  const std::string frame_dir =
+      mp4 ? (fs::path(out).parent_path() / (fs::path(out).stem().string() + "_frames")).string()
+          : out;
+  if (!fs::path(frame_dir).parent_path().empty())
+    fs::create_directories(fs::path(frame_dir).parent_path());
+  StagedDir staged(frame_dir);
+  if (o.progress)
+    std::printf("animate: %d Gaussians, motion \"%s\" (%d frames at %.1f fps), camera %s, %dx%d\n",
+                avatar.num_gaussians(), motion.name.c_str(), F, motion.fps, o.camera.c_str(),
+                o.width, o.height);
+  // Back-face culling needs the template's normals at the anchors; the per-frame .ply files
+  // keep every Gaussian, so `ply` turns it off.
+  const bool want_cull = o.backface_cull < 1.f && !o.ply;
+  const std::vector<float> normals =
+      want_cull ? avatar_anchor_normals(avatar) : std::vector<float>{};
+  PlaybackReport rep;
+  rep.culled = !normals.empty();
+  if (want_cull && !rep.culled && o.progress)
+    std::printf(
+        "animate: the avatar's template is not one vertex per Gaussian; no back-face culling\n");
+  BackfaceCull cull;
+  cull.normals = &normals;
+  cull.threshold = o.backface_cull;
+  Gaussians g;
+  RasterResult rr;
+  Progress prog("animate", o.progress ? F : 0);
+  double render_s = 0;
+  std::vector<std::string> pngs;
+  for (int f = 0; f < F; ++f) {
+    const auto t0 = std::chrono::steady_clock::now();
+    cull.eye = cams[f].centre();
+    pose_avatar(avatar, motion.frames[f], g, rep.culled ? &cull : nullptr);
+    rasterize_forward(g, cams[f], rs, rr);
+    render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    char name[32];
+    std::snprintf(name, sizeof name, "%04d", f);
+    pngs.push_back(staged.path(std::string(name) + ".png"));
+    write_png(pngs.back(), rr.color);
+    if (o.ply) write_ply(staged.path(std::string(name) + ".ply"), g);
+    if (o.progress) prog.update(f + 1);
+  }
+  if (o.progress) prog.finish();
+  if (mp4) {
+    VideoOptions vo;
+    vo.fps = motion.fps;
+    write_mp4_from_pngs(out, pngs, vo);
+  }
+  if (!mp4 || o.ply) {
+    staged.commit();
+    rep.frames_dir = frame_dir;
+  }
+  rep.frames = F;
+  rep.fps = motion.fps;
+  rep.render_ms = 1e3 * render_s / F;
+  return rep;
+}
+
+}  // namespace ks
