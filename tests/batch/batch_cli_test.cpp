@@ -32,11 +32,11 @@ std::string q(const std::string& s) {
   return "'" + s + "'";
 }
 
-// Two photos and a manifest with an option `create` takes (--steps).
+// Two photos and a manifest with an option `create` takes (--iters).
 void two_items(const ks::test::TempDir& dir) {
   write(dir / "a.png", "a");
   write(dir / "b.png", "broken");
-  write(dir / "m.csv", "id,photo,steps\na,a.png,5\nb,b.png,\n");
+  write(dir / "m.csv", "id,photo,iters\na,a.png,5\nb,b.png,\n");
 }
 
 TEST(BatchCli, ManifestOptionsAreCreatesAndProblemsComeAtOnce) {
@@ -88,7 +88,7 @@ TEST(BatchCli, SlurmDryRunAndKubernetesFiles) {
   EXPECT_NE(sb.find("#SBATCH --qos=low\n"), std::string::npos) << sb;
   EXPECT_NE(sb.find("KINESPLAT='" + fs::canonical(KS_CLI_PATH).string() + "'"), std::string::npos)
       << sb;
-  EXPECT_NE(sb.find("'--steps' '5'"), std::string::npos) << sb;
+  EXPECT_NE(sb.find("'--iters' '5'"), std::string::npos) << sb;
   const auto k = ks::test::run_cli(base + " --scheduler k8s --image reg/ks:1 --volume " +
                                    q("data:" + dir.str()) + " --parallelism 2 --cpus 4");
   ASSERT_EQ(k.status, 0) << k.output;
