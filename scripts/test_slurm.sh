@@ -191,4 +191,12 @@ say "the second batch.sbatch: $(grep '^#SBATCH --array' "$W/out/batch.sbatch")"
 wait_batch
 say "\$ kinesplat batch status out"
 ( cd "$W" && "$KS" batch status out )
+
+# The same three items as a Kubernetes Indexed Job (written only: no cluster here). The pods would
+# mount a volume at the work folder, so that they see the photos and the output at these paths.
+say "\$ kinesplat batch manifest.csv --out out-k8s --scheduler k8s --image kinesplat:0.1 --volume avatars:$W"
+( cd "$W" && "$KS" batch manifest.csv --out out-k8s --scheduler k8s --image kinesplat:0.1 \
+    --volume "avatars:$W" ) || fail "batch --scheduler k8s"
+grep -q '"completionMode": "Indexed"' "$W/out-k8s/batch.k8s.json" || fail "no Indexed Job"
+cat "$W/out-k8s/batch.k8s.json"
 say "PASSED"
