@@ -18,7 +18,7 @@ TEST(BatchSlurmCluster, ThreeItemsOneBrokenOnALoopbackCluster) {
   ks::test::TempDir dir("ks_slurm_test");
   const std::string log = dir / "test_slurm.log";
   // No apt-get from the suite; a batch must finish well inside ctest's 600 s limit.
-  const std::string cmd = std::string("KS_SLURM_NO_INSTALL=1 KS_SLURM_TIMEOUT=240 ") +
+  const std::string cmd = std::string("KS_SLURM_NO_INSTALL=1 KS_SLURM_TIMEOUT=420 ") +
                           KS_SOURCE_DIR + "/scripts/test_slurm.sh " + KS_CLI_PATH + " >" + log +
                           " 2>&1";
   const int rc = std::system(cmd.c_str());
