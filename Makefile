@@ -10,7 +10,7 @@ DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libop
 # The perceive helper (Node): its packages pinned by its package-lock.json, its models by models.json.
 PERCEIVE_HELPER := helpers/perceive
 
-.PHONY: deps node perceive-helper viewer build test demo demo-true-frames bench format clean
+.PHONY: deps node perceive-helper viewer build test test-slurm demo demo-true-frames bench format clean
 
 deps:
 	@missing=""; for p in $(DEB_PACKAGES); do \
@@ -55,6 +55,11 @@ build:
 
 test: deps build
 	cd $(BUILD_DIR) && ctest -j $(JOBS) --output-on-failure
+
+# `kinesplat batch --scheduler slurm` on a real one-node Slurm cluster on loopback (docs/batch.md):
+# installs slurm-wlm and munge where missing, starts and stops the daemons itself. Needs root.
+test-slurm: build
+	./scripts/test_slurm.sh $(BUILD_DIR)/kinesplat
 
 demo: deps build
 	./scripts/demo.sh $(BUILD_DIR)/kinesplat $(DEMO_DIR)
