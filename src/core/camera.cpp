@@ -92,7 +92,12 @@ nlohmann::json Camera::to_json() const {
 }
 
 Camera Camera::load(const std::string& path) {
-  return from_json(read_json(path));
+  const nlohmann::json j = read_json(path);
+  try {
+    return from_json(j);
+  } catch (const Error& e) {
+    throw Error(path + ": " + e.what());
+  }
 }
 
 void Camera::save(const std::string& path) const {
