@@ -70,15 +70,23 @@ test-sanitize: deps
 	cd $(SANITIZE_DIR) && $(SANITIZE_ENV) ctest -j $(JOBS) --output-on-failure
 
 # libFuzzer harnesses (fuzz/, docs/robustness.md): clang with ASan + UBSan, built in build-fuzz.
-# Optional: needs clang (Debian's `clang` package, installed here when missing), not `make test`.
+# Optional: needs clang and libFuzzer (Debian's `clang` and `libclang-rt-dev`, installed here when
+# missing); `make test` does not.
 # `make fuzz` runs each harness FUZZ_SECONDS on its seed corpus (made by the project's own writers)
 # plus what earlier runs found (fuzz/corpus/<name>, git-ignored); crashes land in fuzz/crashes/.
 FUZZ_DIR ?= build-fuzz
 FUZZ_SECONDS ?= 180
 FUZZ_TARGETS ?= $(notdir $(basename $(wildcard fuzz/fuzz_*.cpp)))
+FUZZ_DEB_PACKAGES := clang libclang-rt-dev
 fuzz-build:
-	@command -v clang++ >/dev/null 2>&1 || { SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
-	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends clang; }
+	@missing=""; for p in $(FUZZ_DEB_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "kinesplat: installing missing Debian packages for fuzzing:$$missing"; \
+	  SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
 	CC=clang CXX=clang++ cmake -S fuzz -B $(FUZZ_DIR) -G Ninja
 	cmake --build $(FUZZ_DIR) -j $(JOBS)
 fuzz-corpus: fuzz-build
