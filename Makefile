@@ -10,7 +10,7 @@ DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libop
 # The perceive helper (Node): its packages pinned by its package-lock.json, its models by models.json.
 PERCEIVE_HELPER := helpers/perceive
 
-.PHONY: deps node perceive-helper viewer build test test-slurm demo demo-true-frames bench format clean
+.PHONY: deps node perceive-helper viewer build test test-slurm test-sanitize fuzz fuzz-build fuzz-corpus demo demo-true-frames bench format clean
 
 deps:
 	@missing=""; for p in $(DEB_PACKAGES); do \
@@ -61,6 +61,44 @@ test: deps build
 test-slurm: build
 	./scripts/test_slurm.sh $(BUILD_DIR)/kinesplat
 
+# The whole test suite built with AddressSanitizer + UndefinedBehaviorSanitizer in its own build dir
+# (docs/robustness.md). Any report fails the test that triggered it (abort, not exit 1).
+SANITIZE_DIR ?= build-sanitize
+SANITIZE_FLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+SANITIZE_ENV := ASAN_OPTIONS=abort_on_error=1:detect_leaks=1:strict_string_checks=1 \
+  UBSAN_OPTIONS=print_stacktrace=1:abort_on_error=1:halt_on_error=1
+test-sanitize: deps
+	cmake -S . -B $(SANITIZE_DIR) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DKS_BUILD_BENCH=OFF \
+	  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DCMAKE_CXX_FLAGS="$(SANITIZE_FLAGS)" \
+	  -DCMAKE_EXE_LINKER_FLAGS="$(SANITIZE_FLAGS)" $(CMAKE_FLAGS)
+	$(SANITIZE_ENV) cmake --build $(SANITIZE_DIR) -j $(JOBS)
+	cd $(SANITIZE_DIR) && $(SANITIZE_ENV) ctest -j $(JOBS) --output-on-failure
+
+# libFuzzer harnesses (fuzz/, docs/robustness.md): clang with ASan + UBSan, built in build-fuzz.
+# Optional: needs clang and libFuzzer (Debian's `clang` and `libclang-rt-dev`, installed here when
+# missing); `make test` does not.
+# `make fuzz` runs each harness FUZZ_SECONDS on its seed corpus (made by the project's own writers)
+# plus what earlier runs found (fuzz/corpus/<name>, git-ignored); crashes land in fuzz/crashes/.
+FUZZ_DIR ?= build-fuzz
+FUZZ_SECONDS ?= 180
+FUZZ_TARGETS ?= $(notdir $(basename $(wildcard fuzz/fuzz_*.cpp)))
+FUZZ_DEB_PACKAGES := clang libclang-rt-dev
+fuzz-build:
+	@missing=""; for p in $(FUZZ_DEB_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "kinesplat: installing missing Debian packages for fuzzing:$$missing"; \
+	  SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
+	CC=clang CXX=clang++ cmake -S fuzz -B $(FUZZ_DIR) -G Ninja
+	cmake --build $(FUZZ_DIR) -j $(JOBS)
+fuzz-corpus: fuzz-build
+	$(FUZZ_DIR)/fuzz_seeds $(FUZZ_DIR)/seeds
+fuzz: fuzz-corpus
+	./fuzz/run.sh $(FUZZ_DIR) $(FUZZ_SECONDS) $(FUZZ_TARGETS)
+
 demo: deps build
 	./scripts/demo.sh $(BUILD_DIR)/kinesplat $(DEMO_DIR)
 
@@ -80,4 +118,4 @@ format:
 	find src tests bench -name '*.cpp' -o -name '*.hpp' | xargs clang-format -i
 
 clean:
-	rm -rf $(BUILD_DIR)
+	rm -rf $(BUILD_DIR) $(SANITIZE_DIR) $(FUZZ_DIR)

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <map>
+#include <utility>
 
 #include "core/error.hpp"
 #include "core/fileio.hpp"
@@ -57,6 +58,25 @@ struct BlockWriter {
 void check_finite(const std::vector<float>& v, const std::string& what, const char* name) {
   for (float x : v)
     if (!std::isfinite(x)) throw Error(what + ": non-finite value in " + name);
+}
+
+// A whole number of type T from the header (a float such as 1e30 or 2.5 is refused, not cast).
+template <typename T>
+T whole(const nlohmann::json& v, const std::string& what, const std::string& key) {
+  bool ok = v.is_number_integer();
+  if (ok && v.is_number_unsigned()) ok = std::in_range<T>(v.get<uint64_t>());
+  if (ok && !v.is_number_unsigned()) ok = std::in_range<T>(v.get<int64_t>());
+  if (!ok) throw Error(what + ": header value " + key + " must be a whole number in range");
+  return v.is_number_unsigned() ? T(v.get<uint64_t>()) : T(v.get<int64_t>());
+}
+
+template <typename T>
+std::vector<T> whole_array(const nlohmann::json& v, const std::string& what,
+                           const std::string& key) {
+  if (!v.is_array()) throw Error(what + ": header value " + key + " must be an array");
+  std::vector<T> out;
+  for (const auto& e : v) out.push_back(whole<T>(e, what, key));
+  return out;
 }
 
 }  // namespace
@@ -207,10 +227,11 @@ struct BlockReader {
     uint32_t crc = 0;
     try {
       dt = b.at("dtype").get<std::string>();
-      shape = b.at("shape").get<std::vector<int64_t>>();
-      off = b.at("offset").get<size_t>();
-      size = b.at("size").get<size_t>();
-      crc = b.at("crc32").get<uint32_t>();
+      const std::string key = "blocks." + name;
+      shape = whole_array<int64_t>(b.at("shape"), what, key + ".shape");
+      off = whole<size_t>(b.at("offset"), what, key + ".offset");
+      size = whole<size_t>(b.at("size"), what, key + ".size");
+      crc = whole<uint32_t>(b.at("crc32"), what, key + ".crc32");
     } catch (const nlohmann::json::exception& e) {
       throw Error(what + ": malformed entry for block \"" + name + "\": " + e.what());
     }
@@ -222,9 +243,15 @@ struct BlockReader {
       for (auto x : expect_shape) e += std::to_string(x) + " ";
       throw Error(what + ": block \"" + name + "\" has shape [ " + s + "], expected [ " + e + "]");
     }
+    // The element count, checked against the file's size as it is multiplied out (a header may
+    // claim billions of Gaussians: nothing is allocated for them).
     size_t count = 1;
-    for (auto x : shape) {
+    for (auto x : shape)
       if (x < 0) throw Error(what + ": block \"" + name + "\" has a negative dimension");
+    for (auto x : shape) {
+      if (x != 0 && count > bytes.size() / sizeof(T) / size_t(x))
+        throw Error(what + ": file is truncated (block \"" + name +
+                    "\" claims more data than the file holds)");
       count *= size_t(x);
     }
     if (size != count * sizeof(T))
@@ -261,8 +288,8 @@ Avatar parse_avatar(const std::vector<uint8_t>& bytes, const std::string& what) 
   try {
     if (h.value("format", std::string()) != "kinesplat-avatar")
       throw Error(what + ": header \"format\" is not \"kinesplat-avatar\"");
-    const int major = h.at("version").at("major").get<int>();
-    const int minor = h.at("version").at("minor").get<int>();
+    const int major = whole<int>(h.at("version").at("major"), what, "version.major");
+    const int minor = whole<int>(h.at("version").at("minor"), what, "version.minor");
     if (major > kAvatarVersionMajor)
       throw Error(what + ": avatar format version " + std::to_string(major) + "." +
                   std::to_string(minor) + " is newer than this kinesplat supports (" +
@@ -272,17 +299,19 @@ Avatar parse_avatar(const std::vector<uint8_t>& bytes, const std::string& what) 
     if (h.value("byte_order", std::string("little")) != "little")
       throw Error(what + ": only little-endian avatar files are supported");
     const auto& c = h.at("counts");
-    const int64_t N = c.at("gaussians").get<int64_t>();
-    const int64_t Nv = c.at("template_vertices").get<int64_t>();
-    const int64_t F = c.at("template_faces").get<int64_t>();
-    const int J = c.at("joints").get<int>();
+    const int64_t N = whole<int64_t>(c.at("gaussians"), what, "counts.gaussians");
+    const int64_t Nv = whole<int64_t>(c.at("template_vertices"), what, "counts.template_vertices");
+    const int64_t F = whole<int64_t>(c.at("template_faces"), what, "counts.template_faces");
+    const int J = whole<int>(c.at("joints"), what, "counts.joints");
     if (N < 0 || Nv < 0 || F < 0 || J < 1) throw Error(what + ": invalid counts in the header");
+    if (N > int64_t(bytes.size()) || Nv > int64_t(bytes.size()) || F > int64_t(bytes.size()))
+      throw Error(what + ": the header's counts exceed what the file holds (truncated or corrupt)");
     a.body_kind = h.at("body_model").at("kind").get<std::string>();
     a.body_model = h.at("body_model").at("name").get<std::string>();
     const auto betas = h.at("betas").get<std::vector<double>>();
     a.betas = Eigen::Map<const Eigen::VectorXd>(betas.data(), Eigen::Index(betas.size()));
     const auto& sk = h.at("skeleton");
-    a.parents = sk.at("parents").get<std::vector<int>>();
+    a.parents = whole_array<int>(sk.at("parents"), what, "skeleton.parents");
     a.joint_names = sk.at("joint_names").get<std::vector<std::string>>();
     const auto& rj = sk.at("rest_joints");
     if (!rj.is_array() || int(rj.size()) != J || int(a.parents.size()) != J)
@@ -293,9 +322,9 @@ Avatar parse_avatar(const std::vector<uint8_t>& bytes, const std::string& what) 
         throw Error(what + ": rest joint " + std::to_string(j) + " is not 3 numbers");
       for (int k = 0; k < 3; ++k) a.rest_joints(j, k) = rj[j][k].get<double>();
     }
-    const int deg = h.at("sh_degree").get<int>();
+    const int deg = whole<int>(h.at("sh_degree"), what, "sh_degree");
     if (deg < 0 || deg > 3) throw Error(what + ": SH degree must be 0..3");
-    if (h.at("skin_k").get<int>() != kAvatarSkinK)
+    if (whole<int>(h.at("skin_k"), what, "skin_k") != kAvatarSkinK)
       throw Error(what + ": only 4 skin weights per Gaussian are supported");
     if (h.contains("metadata")) a.metadata = h.at("metadata");
     const int64_t K = sh_coeff_count(deg);

@@ -23,6 +23,15 @@ Eigen::MatrixXd avatar_full_pose(const Avatar& avatar, const BodyParams& p) {
   pose.row(0) = p.global_orient.transpose();
   int body_joints = J - 1;
   if (J == 52 || J == 55) body_joints = 21;
+  // Only the layouts that exist are mapped (see pose.hpp); any other length is a mistake upstream,
+  // not something to pad or cut silently.
+  const Eigen::Index n = p.body_pose.size();
+  if (n != 0 && n != 63 && n != 69 && n != 3 * body_joints)
+    throw Error("pose: body_pose has " + std::to_string(n) +
+                " values; expected 69 (SMPL / default: 23 joints x 3), 63 (SMPL+H / SMPL-X: 21 "
+                "joints x 3) or " +
+                std::to_string(3 * body_joints) + " (this avatar's " + std::to_string(body_joints) +
+                " body joints x 3)");
   for (int j = 0; j < body_joints; ++j) put3(pose, 1 + j, p.body_pose, 3 * j);
   int next = 1 + body_joints;
   if (J == 55) {

@@ -14,9 +14,12 @@
 namespace ks {
 
 // All joints' axis-angles (J x 3) for the avatar's skeleton from BodyParams: global_orient, then
-// body_pose (a shorter body_pose is zero-padded, a longer one truncated: an SMPL motion drives the
-// 21 body joints of SMPL-H/SMPL-X), then for 52 joints (SMPL+H) the hands, for 55 (SMPL-X) jaw,
-// eyes and hands.
+// body_pose, then for 52 joints (SMPL+H) the hands, for 55 (SMPL-X) jaw, eyes and hands. body_pose
+// may be empty (rest), 69 values (SMPL / default: 23 joints), 63 (SMPL+H / SMPL-X: 21 joints) or 3
+// per body joint of this skeleton; any other length is a ks::Error. Between the two SMPL layouts
+// the first 21 joints are shared: an SMPL motion's 69 values drive an SMPL+H / SMPL-X avatar's 21
+// body joints (SMPL's hand joints 22, 23 are dropped), 63 values leave an SMPL avatar's joints 22,
+// 23 at rest (as AMASS's SMPL+H motions do), and a skeleton with fewer joints uses the first ones.
 Eigen::MatrixXd avatar_full_pose(const Avatar& avatar, const BodyParams& params);
 
 // Skinning transforms (rest -> posed, translation included), one 4x4 per joint: world transform

@@ -50,8 +50,13 @@ ks::cli::CommandGroup group(80, [](CLI::App& app) {
     if (args->pose.empty()) {
       g = avatar.gaussians;
     } else {
-      const ks::BodyParams p = ks::avatar_params_from_json(avatar, ks::read_json(args->pose));
-      g = ks::pose_avatar(avatar, p);
+      try {
+        const ks::BodyParams p = ks::avatar_params_from_json(avatar, ks::read_json(args->pose));
+        g = ks::pose_avatar(avatar, p);
+      } catch (const ks::Error& e) {
+        const std::string m = e.what();
+        throw ks::Error(m.find(args->pose) == std::string::npos ? args->pose + ": " + m : m);
+      }
     }
     ks::write_ply(args->out, g);
     std::printf("export: wrote %zu Gaussians (%s pose, SH degree %d) to %s\n", g.size(),

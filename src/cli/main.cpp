@@ -1,6 +1,8 @@
 // kinesplat — one photo in, an animatable Gaussian-splat avatar out.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <utility>
 #include <vector>
@@ -21,11 +23,32 @@ CommandGroup::CommandGroup(int order, Register reg) {
   groups().emplace_back(order, std::move(reg));
 }
 
+namespace {
+// Every floating-point option of `app` and its subcommands refuses NaN and infinities (CLI11 takes
+// "nan", "inf" and "1e999", and a range check lets NaN through).
+void require_finite_floats(CLI::App& app) {
+  static const CLI::Validator finite(
+      [](std::string& v) -> std::string {
+        char* end = nullptr;
+        const double d = std::strtod(v.c_str(), &end);
+        if (end != v.c_str() && *end == '\0' && !std::isfinite(d))
+          return "must be a finite number, got " + v;
+        return "";
+      },
+      "", "finite");
+  for (CLI::Option* o : app.get_options())
+    if (o->get_type_name().rfind("FLOAT", 0) == 0) o->check(finite);
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; }))
+    require_finite_floats(*sub);
+}
+}  // namespace
+
 void register_all(CLI::App& app) {
   auto& g = groups();
   std::stable_sort(g.begin(), g.end(),
                    [](const auto& a, const auto& b) { return a.first < b.first; });
   for (auto& [order, reg] : g) reg(app);
+  require_finite_floats(app);
 }
 
 }  // namespace ks::cli

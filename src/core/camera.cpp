@@ -43,8 +43,14 @@ Camera Camera::from_json(const nlohmann::json& j) {
     if (!j.contains(key)) throw Error(std::string("camera: missing key \"") + key + "\"");
   Camera c;
   try {
-    c.width = j.at("width").get<int>();
-    c.height = j.at("height").get<int>();
+    for (const char* key : {"width", "height"}) {
+      const auto& v = j.at(key);
+      if (!v.is_number_integer() || v.get<int64_t>() <= 0 || v.get<int64_t>() > (1 << 20))
+        throw Error(std::string("camera: \"") + key +
+                    "\" must be a whole number of pixels in [1, " + std::to_string(1 << 20) + "]");
+    }
+    c.width = int(j.at("width").get<int64_t>());
+    c.height = int(j.at("height").get<int64_t>());
     c.fx = j.at("fx").get<double>();
     c.fy = j.at("fy").get<double>();
     c.cx = j.at("cx").get<double>();
@@ -62,6 +68,9 @@ Camera Camera::from_json(const nlohmann::json& j) {
     throw Error(std::string("camera: wrong value type: ") + e.what());
   }
   if (c.width <= 0 || c.height <= 0) throw Error("camera: width and height must be positive");
+  if (!std::isfinite(c.fx) || !std::isfinite(c.fy) || !std::isfinite(c.cx) ||
+      !std::isfinite(c.cy) || !c.R.allFinite() || !c.t.allFinite())
+    throw Error("camera: fx, fy, cx, cy, R and t must be finite numbers");
   if (!(c.fx > 0) || !(c.fy > 0)) throw Error("camera: fx and fy must be positive");
   const double orth = (c.R * c.R.transpose() - Eigen::Matrix3d::Identity()).norm();
   if (!(orth < 1e-3) || c.R.determinant() < 0)
@@ -83,7 +92,12 @@ nlohmann::json Camera::to_json() const {
 }
 
 Camera Camera::load(const std::string& path) {
-  return from_json(read_json(path));
+  const nlohmann::json j = read_json(path);
+  try {
+    return from_json(j);
+  } catch (const Error& e) {
+    throw Error(path + ": " + e.what());
+  }
 }
 
 void Camera::save(const std::string& path) const {

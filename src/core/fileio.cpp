@@ -59,7 +59,7 @@ nlohmann::json read_json(const std::string& path) {
   const std::string text = read_file_text(path);
   try {
     return nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for 1e999
     throw Error("malformed JSON in " + path + ": " + e.what());
   }
 }

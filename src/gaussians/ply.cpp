@@ -1,5 +1,6 @@
 #include "gaussians/ply.hpp"
 
+#include <cmath>
 #include <cstring>
 #include <sstream>
 
@@ -106,10 +107,11 @@ Gaussians read_ply(const std::string& path, PlyExtra* extra) {
                  ", found '" + props[i] + "' (missing or out of order)");
   }
   const size_t P = props.size();
-  const size_t need = size_t(count) * P * 4;
-  if (bytes.size() - pos < need)
-    throw fail("truncated data: " + std::to_string(count) + " vertices need " +
-               std::to_string(need) + " bytes, found " + std::to_string(bytes.size() - pos));
+  // Checked by division: a header may claim billions of vertices (nothing is allocated for them).
+  if (size_t(count) > (bytes.size() - pos) / (P * 4))
+    throw fail("truncated data: " + std::to_string(count) + " vertices of " + std::to_string(P) +
+               " floats need more than the " + std::to_string(bytes.size() - pos) +
+               " bytes after the header");
   Gaussians g;
   g.sh_degree = degree;
   g.resize(size_t(count));
@@ -123,6 +125,10 @@ Gaussians read_ply(const std::string& path, PlyExtra* extra) {
   for (size_t i = 0; i < size_t(count); ++i) {
     std::memcpy(row.data(), bytes.data() + pos + i * P * 4, P * 4);
     const float* r = row.data();
+    for (size_t k = 0; k < P; ++k)
+      if (!std::isfinite(r[k]))
+        throw fail("vertex " + std::to_string(i) + ": property '" + props[k] +
+                   "' is not a finite number");
     for (int a = 0; a < 3; ++a) g.means[3 * i + a] = r[a];
     for (int c = 0; c < 3; ++c) g.sh[(i * K) * 3 + c] = r[6 + c];
     for (int c = 0; c < 3; ++c)

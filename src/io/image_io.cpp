@@ -7,13 +7,13 @@
 
 #include "core/error.hpp"
 #include "core/fileio.hpp"
+#include "io/image_decode.hpp"
 
 namespace ks {
 
 Image read_image(const std::string& path, int channels) {
   if (!std::filesystem::exists(path)) throw Error("cannot open image " + path + ": no such file");
-  cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
-  if (m.empty()) throw Error("cannot read image " + path + ": not a readable image file");
+  cv::Mat m = decode_image_file(read_file_bytes(path), path);
   int c = m.channels();
   if (c == 3) cv::cvtColor(m, m, cv::COLOR_BGR2RGB);
   if (c == 4) cv::cvtColor(m, m, cv::COLOR_BGRA2RGBA);

@@ -61,6 +61,7 @@ std::string header_value(const std::string& h, const std::string& key, const std
 
 std::vector<int64_t> parse_shape(const std::string& s, const std::string& what) {
   std::vector<int64_t> shape;
+  if (s.empty() || s[0] != '(') throw Error(what + ": malformed shape " + s + " in .npy header");
   size_t i = 1;  // skip '('
   while (i < s.size()) {
     while (i < s.size() && (s[i] == ' ' || s[i] == ',' || s[i] == ')')) ++i;
@@ -319,13 +320,26 @@ bool parse_npy(const uint8_t* data, size_t size, const std::string& what, NpyArr
     }
     throw Error(what + ": unsupported dtype '" + descr + "'");
   }
+  // The element count, checked against the bytes present before anything is multiplied out (a
+  // header may claim (2**40, 2**40, ...) elements).
+  const size_t dstart = hstart + hlen;
+  const size_t avail = size - dstart;
+  size_t count = 1;
+  bool empty = false;
+  for (const int64_t s : shape) empty = empty || s == 0;
+  for (const int64_t s : shape) {
+    if (empty) break;
+    if (size_t(s) > avail / size_t(itemsize) / count)
+      throw Error(what + ": truncated .npy data (shape " + header_value(h, "shape", what) +
+                  " needs more than the " + std::to_string(avail) + " bytes present)");
+    count *= size_t(s);
+  }
   out = NpyArray{};
   out.kind = kind;
   out.itemsize = itemsize;
   out.shape = shape;
-  const size_t nbytes = size_t(out.size()) * size_t(itemsize);
-  const size_t dstart = hstart + hlen;
-  if (size - dstart < nbytes)
+  const size_t nbytes = (empty ? 0 : count) * size_t(itemsize);
+  if (avail < nbytes)
     throw Error(what + ": truncated .npy data (" + std::to_string(size - dstart) + " of " +
                 std::to_string(nbytes) + " bytes)");
   out.data.assign(data + dstart, data + dstart + nbytes);
@@ -415,6 +429,11 @@ NpzFile read_npz_bytes(const std::vector<uint8_t>& bytes, const std::string& wha
       if (csize != usize) throw Error(what + ": corrupt stored entry '" + name + "'");
       raw.assign(d + dstart, d + dstart + csize);
     } else if (method == 8) {
+      // Deflate expands at most about 1032:1: a larger claim is a corrupt (or hostile) header, and
+      // the buffer for it is never allocated.
+      if (uint64_t(usize) > uint64_t(csize) * 1032 + 1024)
+        throw Error(what + ": corrupt zip entry '" + name + "' (claims " + std::to_string(usize) +
+                    " bytes uncompressed from " + std::to_string(csize) + ")");
       raw = inflate_raw(d + dstart, csize, usize, what + " entry '" + name + "'");
     } else {
       throw Error(what + ": entry '" + name + "' uses zip compression method " +

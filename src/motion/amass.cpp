@@ -26,6 +26,12 @@ Motion load_amass_npz(const std::string& path, int frames) {
     throw Error(path + ": \"trans\" must be " + std::to_string(N) + " x 3, got " +
                 trans.shape_string());
   if (N == 0) throw Error(path + ": the motion has no frames");
+  // Every value, also of the frames the subsampling skips: a NaN anywhere is a corrupt file.
+  for (const NpyArray* a : {&poses, &trans})
+    for (int64_t i = 0; i < a->size(); ++i)
+      if (!std::isfinite(a->as_double(i)))
+        throw Error(path + ": non-finite value in \"" + (a == &poses ? "poses" : "trans") +
+                    "\" (frame " + std::to_string(i / a->shape[1]) + ")");
   double fps = 30.0;
   for (const char* key : {"mocap_framerate", "mocap_frame_rate"})
     if (npz.has(key)) {

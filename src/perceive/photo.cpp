@@ -9,6 +9,7 @@
 
 #include "core/error.hpp"
 #include "core/fileio.hpp"
+#include "io/image_decode.hpp"
 #include "io/image_io.hpp"
 
 namespace ks {
@@ -47,15 +48,7 @@ int tiff_orientation(const uint8_t* p, size_t n) {
 }
 
 cv::Mat decode(const std::vector<uint8_t>& bytes, const std::string& path) {
-  cv::Mat m;
-  try {
-    m = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception&) {
-    m = cv::Mat();
-  }
-  if (m.empty())
-    throw Error("cannot read image " + path + ": not a PNG, JPEG or other readable image");
-  return m;
+  return decode_image_file(bytes, path);
 }
 
 // OpenCV Mat (8/16-bit, 1-4 channels, BGR order) -> float Image in RGB(A) order.
