@@ -54,7 +54,7 @@ struct CreateReport {
   std::vector<std::string> videos;
   std::vector<CreateStage> stages;
   double seconds = 0;
-  double peak_rss_mb = 0;        // this process
+  double peak_rss_mb = 0;  // this process
 };
 
 // The stages' names, in order.

@@ -5,9 +5,9 @@
 #include <Eigen/Core>
 #include <array>
 
+#include "body/keypoints.hpp"
 #include "meshrender/meshrender.hpp"
 #include "synth/appearance.hpp"
-#include "body/keypoints.hpp"
 #include "synth/person.hpp"
 
 namespace ks {

@@ -221,8 +221,9 @@ TEST(Synth, KeypointsLandOnThePerson) {
     }
     EXPECT_GE(visible, 10);
   }
-  const auto kps = synth_keypoints(p, posed, synth_camera({&posed.vertices}, 0, 48, 72),
-                                   render_synth(p, posed, synth_camera({&posed.vertices}, 0, 48, 72), 1));
+  const auto kps =
+      synth_keypoints(p, posed, synth_camera({&posed.vertices}, 0, 48, 72),
+                      render_synth(p, posed, synth_camera({&posed.vertices}, 0, 48, 72), 1));
   PersonKeypoints person;  // written by the library's OpenPose writer, as run_synth does
   for (size_t k = 0; k < kps.size(); ++k) person.body[k] = {kps[k].x(), kps[k].y(), kps[k].z()};
   const auto j = openpose_json(person);

@@ -13,8 +13,8 @@
 #include "cli_run.hpp"
 #include "core/error.hpp"
 #include "core/fileio.hpp"
-#include "web/skinned_ply.hpp"
 #include "temp_dir.hpp"
+#include "web/skinned_ply.hpp"
 
 namespace fs = std::filesystem;
 
