@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "animate/framing.hpp"
 #include "avatar/pose.hpp"
 #include "core/error.hpp"
 #include "core/fileio.hpp"
@@ -131,21 +132,9 @@ nlohmann::json web_motion_json(const Avatar& a, const Motion& m) {
     poses.push_back(aa);
     transl.push_back({round6(p.transl.x()), round6(p.transl.y()), round6(p.transl.z())});
   }
-  // Bounds of the posed Gaussian centres (opaque ones, up to ~20K per frame, up to 16 frames).
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = Eigen::Vector3d::Constant(-1e30);
-  Gaussians g;
-  const size_t step = std::max<size_t>(1, m.frames.size() / 16);
-  for (size_t f = 0; f < m.frames.size(); f += step) {
-    pose_avatar(a, m.frames[f], g);
-    const size_t stride = std::max<size_t>(1, g.size() / 20000);
-    for (size_t i = 0; i < g.size(); i += stride) {
-      if (g.opacity_logits[i] < -2.f) continue;
-      const Eigen::Vector3d q(g.means[3 * i], g.means[3 * i + 1], g.means[3 * i + 2]);
-      lo = lo.cwiseMin(q);
-      hi = hi.cwiseMax(q);
-    }
-  }
-  if (lo.x() > hi.x()) lo = hi = Eigen::Vector3d::Zero();
+  // Bounds of the posed Gaussian centres (animate/framing.hpp: opaque ones, up to 16 frames).
+  Eigen::Vector3d lo, hi;
+  motion_bounds(a, m, lo, hi);
   nlohmann::json j;
   j["format"] = "kinesplat-motion";
   j["version"] = 1;
