@@ -15,6 +15,7 @@
 #include "core/fileio.hpp"
 #include "fit/fit_file.hpp"
 #include "io/video.hpp"
+#include "perceive/photo.hpp"
 #include "reconstruct/density_ops.hpp"
 
 namespace ks {
@@ -150,6 +151,9 @@ CreateReport run_create(const std::string& photo, const std::string& out_dir,
   }
   for (const auto& m : o.motions)
     if (m == "turn") throw Error("create: the turntable is always made; give other motions");
+
+  // The photo is decoded once here, so that an unreadable one is refused before DIR is made.
+  (void)load_photo(photo);
 
   const fs::path dir(out_dir);
   fs::create_directories(dir);

@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cstdio>
 #include <cstring>
 #include <mutex>
@@ -46,6 +47,28 @@ auto without_stderr(F&& f) {
 
 }  // namespace
 
+std::string png_chunk_problem(const std::vector<uint8_t>& b) {
+  static const uint8_t png_sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  if (b.size() < 8 || std::memcmp(b.data(), png_sig, 8) != 0) return {};
+  size_t i = 8;
+  while (i < b.size()) {
+    const size_t left = b.size() - i;
+    if (left < 8)
+      return "it ends inside a chunk header at byte " + std::to_string(i) + " (truncated)";
+    const uint64_t len = be32(&b[i]);
+    std::string type(reinterpret_cast<const char*>(&b[i + 4]), 4);
+    for (char& c : type)
+      if (!std::isalpha(static_cast<unsigned char>(c))) c = '?';
+    if (len > 0x7FFFFFFFu || len + 12 > left)
+      return "its '" + type + "' chunk at byte " + std::to_string(i) + " claims " +
+             std::to_string(len) + " bytes but only " + std::to_string(left) +
+             " are left in the file (truncated or damaged)";
+    if (type == "IEND") return {};
+    i += 12 + len;
+  }
+  return "it has no IEND chunk (truncated)";
+}
+
 bool image_header_size(const std::vector<uint8_t>& b, int64_t& width, int64_t& height) {
   const size_t n = b.size();
   static const uint8_t png_sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
@@ -85,6 +108,8 @@ cv::Mat decode_image_file(const std::vector<uint8_t>& bytes, const std::string& 
     throw Error("cannot read image " + path + ": it is " + std::to_string(w) + " x " +
                 std::to_string(h) + " pixels, more than the " + std::to_string(kMaxImagePixels) +
                 " kinesplat reads (downscale it first)");
+  const std::string chunk_problem = png_chunk_problem(bytes);
+  if (!chunk_problem.empty()) throw Error("cannot read image " + path + ": " + chunk_problem);
   cv::Mat m = without_stderr([&] {
     try {
       return cv::imdecode(bytes, cv::IMREAD_UNCHANGED);

@@ -18,7 +18,13 @@ inline constexpr int64_t kMaxImagePixels = int64_t(1) << 27;
 // the header is unreadable (the decoder then decides).
 bool image_header_size(const std::vector<uint8_t>& bytes, int64_t& width, int64_t& height);
 
-// cv::imdecode(bytes, IMREAD_UNCHANGED) with the checks above; throws ks::Error naming `path`
+// For a PNG, what is wrong with its chunk layout, empty when nothing is: every chunk's length must
+// fit in the file (libpng allocates a chunk's claimed length before reading it, so 160 bytes that
+// claim a 1 GB chunk cost 1 GB), and the chunks must reach IEND. Empty for other formats.
+std::string png_chunk_problem(const std::vector<uint8_t>& bytes);
+
+// cv::imdecode(bytes, IMREAD_UNCHANGED) with the checks above (header size, PNG chunks); throws
+// ks::Error naming `path`
 // ("cannot read image PATH: ...") for an empty, oversized or undecodable file.
 cv::Mat decode_image_file(const std::vector<uint8_t>& bytes, const std::string& path);
 

@@ -765,6 +765,57 @@ TEST(ErrorContract, GenerateAndAugment) {
   }
 }
 
+TEST(ErrorContract, CreatePhoto) {
+  // create checks the photo (and everything else) before it makes DIR or runs a stage.
+  check_all("create photo", bad_images(), "photo.png", no_fixtures,
+            [](auto& t, auto& p) { return "create " + p + " --out " + (t / "out") + " -q"; });
+}
+
+// batch reports every problem of a manifest at once: the first line is `error: MANIFEST: N
+// problems, nothing was run:`, then one indented line per problem, each naming the manifest.
+TEST(ErrorContract, BatchManifest) {
+  auto fixtures = [](const test::TempDir& t) { write_image(t / "photo.png", 16, 16); };
+  const std::vector<Bad> bads = with(
+      any_file(),
+      {{"unknown option",
+        [](const std::string& p) { write_bytes(p, "id,photo,stepz\na,photo.png,3\n"); }},
+       {"duplicate id and missing photo",
+        [](const std::string& p) { write_bytes(p, "id,photo\na,photo.png\na,none.png\n"); }},
+       {"unterminated quote", [](const std::string& p) { write_bytes(p, "id,photo\n\"a,b\n"); }},
+       {"JSON lines with a bad line",
+        [](const std::string& p) {
+          write_bytes(p, "{\"id\": \"a\", \"photo\": \"photo.png\"}\n{\"id\n");
+        }},
+       {"header only", [](const std::string& p) { write_bytes(p, "id,photo\n"); }}});
+  for (const Bad& b : bads) {
+    SCOPED_TRACE("batch manifest: " + b.label);
+    test::TempDir t("ks_contract");
+    fixtures(t);
+    const std::string m = t / "m.csv";
+    b.make(m);
+    const auto before = snapshot(t.path());
+    const CliRun r = run_cli("batch " + m + " --out " + (t / "out") + " --scheduler local");
+    EXPECT_EQ(r.status, 1) << r.output;
+    EXPECT_EQ(r.out, "");
+    EXPECT_EQ(r.err.rfind("error: ", 0), 0u) << r.err;
+    ASSERT_FALSE(r.err.empty());
+    EXPECT_EQ(r.err.back(), '\n');
+    size_t start = 0, lines = 0;
+    while (start < r.err.size()) {
+      const size_t end = r.err.find('\n', start);
+      const std::string line = r.err.substr(start, end - start);
+      if (lines > 0) {
+        EXPECT_EQ(line.rfind("  ", 0), 0u) << "not an indented problem: " << line;
+      }
+      EXPECT_NE(line.find("m.csv"), std::string::npos) << "does not name m.csv: " << line;
+      ++lines;
+      start = end + 1;
+    }
+    const auto after = snapshot(t.path());
+    EXPECT_TRUE(before == after) << "files changed:" << diff(before, after);
+  }
+}
+
 TEST(ErrorContract, Synth) {
   check_all("synth body", bad_body_models(), "model.npz", no_fixtures, [](auto& t, auto& p) {
     return "synth --seed 1 --size 16x24 --frames 1 --body " + p + " --out " + (t / "out");
