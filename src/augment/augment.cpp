@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "augment/face_fusion.hpp"
+#include "augment/face_warp.hpp"
 #include "body/keypoints.hpp"
 #include "core/error.hpp"
 #include "core/fileio.hpp"
@@ -57,6 +58,14 @@ AugmentReport run_augment(const std::string& prior_dir, const std::string& subje
   const bool photo_has_face =
       face_landmarks(*fit.model, src, fit.params, fit.camera, o.max_face_angle_degrees, photo_face);
 
+  if (o.face_warp != "body" && o.face_warp != "similarity")
+    throw Error("augment: face warp \"" + o.face_warp + "\" is not body or similarity");
+  // The body's surface as the photo sees it (for the warp through the body).
+  Eigen::MatrixXd photo_seen;
+  if (o.face_fusion && photo_has_face && o.face_warp == "body")
+    photo_seen = photo_surface(body_forward(*fit.model, fit.params).vertices, fit.model->faces,
+                               fit.camera, photo_mask);
+
   StagedDir staged((prior / "refined").string());
   const fs::path root = staged.staging();
   Dataset out = ds;
@@ -73,9 +82,16 @@ AugmentReport run_augment(const std::string& prior_dir, const std::string& subje
       FaceLandmarks ff;
       BodyParams p = f.pose;
       p.betas = ds.betas;
-      if (face_landmarks(*fit.model, src, p, f.camera, o.max_face_angle_degrees, ff) &&
-          fuse_face(photo, photo_mask, photo_face, img, mask, ff))
-        ++rep.faces_fused;
+      if (face_landmarks(*fit.model, src, p, f.camera, o.max_face_angle_degrees, ff)) {
+        Image warped, valid;
+        if (o.face_warp == "body")
+          warp_photo_through_body(photo, photo_seen, body_forward(*fit.model, p).vertices,
+                                  fit.model->faces, f.camera, warped, valid);
+        else
+          warp_face_similarity(photo, photo_mask, photo_face, ff, img.width, img.height, warped,
+                               valid);
+        if (blend_face(warped, valid, img, mask, ff)) ++rep.faces_fused;
+      }
     }
     const std::string out_image = (root / f.image).string();
     write_png(out_image, img);

@@ -12,6 +12,10 @@ struct AugmentOptions {
   // A frame's face counts as seen when the head's forward direction is within this angle of the
   // direction to the camera.
   double max_face_angle_degrees = 50.0;
+  // How the photo's face is carried onto a frame: "body" warps it through the fitted body's
+  // surface (the face turns with the head; augment/face_warp.hpp), "similarity" by the 2D
+  // similarity of the landmarks (SVAD's; a frontal face stays frontal).
+  std::string face_warp = "body";
   // Run on each frame by /bin/sh with {in} and {out} replaced (shell-quoted): a PNG in, a PNG of
   // the same size out (docs/augment.md). Empty: none.
   std::string restore_command;

@@ -50,15 +50,24 @@ Eigen::Matrix<double, 2, 3> similarity_2d(const std::vector<Eigen::Vector2d>& fr
   return S;
 }
 
-bool fuse_face(const Image& photo, const Image& photo_mask, const FaceLandmarks& pf, Image& frame,
-               const Image& frame_mask, const FaceLandmarks& ff, const FaceFusionOptions& o,
-               Image* region) {
-  if (pf.points.size() < 3 || ff.points.size() != pf.points.size())
-    throw Error("face fusion: the nose and both eyes are needed in both images");
-  const double iod = (ff.points[1] - ff.points[2]).norm();
-  if (!(iod >= 4.0)) return false;
+namespace {
+
+Image from_u8(const cv::Mat& m) {
+  Image img(m.cols, m.rows, m.channels());
+  for (int y = 0; y < m.rows; ++y)
+    for (int x = 0; x < m.cols; ++x)
+      for (int c = 0; c < m.channels(); ++c)
+        img.at(x, y, c) = m.ptr<uint8_t>(y)[x * m.channels() + c] / 255.f;
+  return img;
+}
+
+}  // namespace
+
+void warp_face_similarity(const Image& photo, const Image& photo_mask, const FaceLandmarks& pf,
+                          const FaceLandmarks& ff, int width, int height, Image& src,
+                          Image& src_valid) {
   const Eigen::Matrix<double, 2, 3> S = similarity_2d(pf.points, ff.points);
-  // The photo (and its mask) warped into the frame. OpenCV's pixel centres are at integers.
+  // OpenCV's pixel centres are at integers, the landmarks' at integer + 0.5.
   cv::Mat M(2, 3, CV_64F);
   for (int r = 0; r < 2; ++r)
     for (int c = 0; c < 3; ++c) M.at<double>(r, c) = S(r, c);
@@ -66,11 +75,27 @@ bool fuse_face(const Image& photo, const Image& photo_mask, const FaceLandmarks&
       S.leftCols<2>() * Eigen::Vector2d(0.5, 0.5) - Eigen::Vector2d(0.5, 0.5);
   M.at<double>(0, 2) += shift.x();
   M.at<double>(1, 2) += shift.y();
+  const cv::Size size(width, height);
+  cv::Mat s, sm;
+  cv::warpAffine(to_u8(photo), s, M, size, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  cv::warpAffine(to_u8(photo_mask), sm, M, size, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  src = from_u8(s);
+  src_valid = Image(width, height, 1);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) src_valid.at(x, y, 0) = sm.at<uint8_t>(y, x) >= 128 ? 1.f : 0.f;
+}
+
+bool blend_face(const Image& src_img, const Image& src_valid, Image& frame, const Image& frame_mask,
+                const FaceLandmarks& ff, const FaceFusionOptions& o, Image* region) {
+  if (ff.points.size() < 3) throw Error("face fusion: the nose and both eyes are needed");
+  if (src_img.width != frame.width || src_img.height != frame.height ||
+      src_valid.width != frame.width || src_valid.height != frame.height)
+    throw Error("face fusion: the warped photo is not the frame's size");
+  const double iod = (ff.points[1] - ff.points[2]).norm();
+  if (!(iod >= 4.0)) return false;
   const cv::Size size(frame.width, frame.height);
-  cv::Mat src, src_mask;
-  cv::warpAffine(to_u8(photo), src, M, size, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  cv::warpAffine(to_u8(photo_mask), src_mask, M, size, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
-  // The face region: an ellipse around the nose, on the person in both images.
+  // The face region: an ellipse around the nose, where the warped photo and the frame both show
+  // the person.
   cv::Mat mask(size, CV_8UC1, cv::Scalar(0));
   const Eigen::Vector2d nose = ff.points[0];
   const Eigen::Vector2d eyes = 0.5 * (ff.points[1] + ff.points[2]);
@@ -80,18 +105,16 @@ bool fuse_face(const Image& photo, const Image& photo_mask, const FaceLandmarks&
   cv::ellipse(mask, cv::Point2d(nose.x() - 0.5, nose.y() - 0.5),
               cv::Size2d(o.width * iod, o.height * iod), angle, 0, 360, cv::Scalar(255),
               cv::FILLED);
-  const cv::Mat fm = to_u8(frame_mask);
   for (int y = 0; y < size.height; ++y)
     for (int x = 0; x < size.width; ++x)
-      if (src_mask.at<uint8_t>(y, x) < 128 || fm.at<uint8_t>(y, x) < 128)
-        mask.at<uint8_t>(y, x) = 0;
+      if (src_valid.at(x, y, 0) < 0.5f || frame_mask.at(x, y, 0) < 0.5f) mask.at<uint8_t>(y, x) = 0;
   // seamlessClone needs the region away from the image's border.
   cv::rectangle(mask, cv::Rect(0, 0, size.width, size.height), cv::Scalar(0), 2);
   const cv::Rect box = cv::boundingRect(mask);
   if (box.width < 8 || box.height < 8) return false;
   cv::Mat dst = to_u8(frame), out;
   const cv::Point centre(box.x + box.width / 2, box.y + box.height / 2);
-  cv::seamlessClone(src, dst, mask, centre, out, cv::NORMAL_CLONE);
+  cv::seamlessClone(to_u8(src_img), dst, mask, centre, out, cv::NORMAL_CLONE);
   for (int y = 0; y < size.height; ++y)
     for (int x = 0; x < size.width; ++x)
       for (int c = 0; c < 3; ++c) frame.at(x, y, c) = out.at<cv::Vec3b>(y, x)[c] / 255.f;
@@ -101,6 +124,18 @@ bool fuse_face(const Image& photo, const Image& photo_mask, const FaceLandmarks&
       for (int x = 0; x < size.width; ++x) region->at(x, y, 0) = mask.at<uint8_t>(y, x) / 255.f;
   }
   return true;
+}
+
+bool fuse_face(const Image& photo, const Image& photo_mask, const FaceLandmarks& pf, Image& frame,
+               const Image& frame_mask, const FaceLandmarks& ff, const FaceFusionOptions& o,
+               Image* region) {
+  if (pf.points.size() < 3 || ff.points.size() != pf.points.size())
+    throw Error("face fusion: the nose and both eyes are needed in both images");
+  const double iod = (ff.points[1] - ff.points[2]).norm();
+  if (!(iod >= 4.0)) return false;
+  Image src, valid;
+  warp_face_similarity(photo, photo_mask, pf, ff, frame.width, frame.height, src, valid);
+  return blend_face(src, valid, frame, frame_mask, ff, o, region);
 }
 
 }  // namespace ks

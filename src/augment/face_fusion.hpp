@@ -25,10 +25,24 @@ struct FaceFusionOptions {
 Eigen::Matrix<double, 2, 3> similarity_2d(const std::vector<Eigen::Vector2d>& from,
                                           const std::vector<Eigen::Vector2d>& to);
 
-// Fuses the photo's face into `frame` (RGB, changed in place). `photo_mask` and `frame_mask`
-// (1 channel) keep the blend on the person. Landmarks: nose first, then the two eyes. Returns
-// false (frame untouched) when the face region would be too small (under 8 px) or leave the
-// frame.
+// Blends `src` (RGB, the frame's size: the photo already warped onto the frame, by
+// warp_face_similarity or augment/face_warp.hpp's warp through the body) into `frame` (changed in
+// place) over the face region: the ellipse of FaceFusionOptions around the frame's landmarks
+// (nose first, then the two eyes), where `src_valid` and `frame_mask` (1 channel) are set.
+// Returns false (frame untouched) when that region would be too small (under 8 px) or leave the
+// frame. `region` (optional) receives the region blended.
+bool blend_face(const Image& src, const Image& src_valid, Image& frame, const Image& frame_mask,
+                const FaceLandmarks& frame_face, const FaceFusionOptions& options = {},
+                Image* region = nullptr);
+
+// The photo and its mask warped onto a frame (width x height) by the similarity taking the
+// photo's landmarks onto the frame's: `src` RGB, `src_valid` where the warped mask is set.
+void warp_face_similarity(const Image& photo, const Image& photo_mask,
+                          const FaceLandmarks& photo_face, const FaceLandmarks& frame_face,
+                          int width, int height, Image& src, Image& src_valid);
+
+// warp_face_similarity then blend_face: the 2D fusion of SVAD (a frontal face stays frontal; see
+// docs/augment.md for where that hurts).
 bool fuse_face(const Image& photo, const Image& photo_mask, const FaceLandmarks& photo_face,
                Image& frame, const Image& frame_mask, const FaceLandmarks& frame_face,
                const FaceFusionOptions& options = {}, Image* region = nullptr);

@@ -30,6 +30,11 @@ ks::cli::CommandGroup group(28, [](CLI::App& app) {
                   "The photo's face blended into every frame that shows the face")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
+  sub->add_option("--face-warp", args->opt.face_warp,
+                  "How the photo's face reaches a frame: body (through the fitted body's "
+                  "surface, turning with the head) or similarity (2D, from landmarks)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"body", "similarity"}));
   sub->add_option("--restore", args->opt.restore_command,
                   "A restoration command run on each frame: {in} and {out} are replaced by PNG "
                   "paths (docs/augment.md)");

@@ -66,6 +66,10 @@ ks::cli::CommandGroup group(29, [](CLI::App& app) {
       ->check(CLI::IsMember({0.0, 0.5}));
   sub->add_option("--focal", a->o.fit.fit.focal, "Focal length of the photo in pixels");
   sub->add_flag("--no-face-fusion", a->no_face_fusion, "augment: do not fuse the photo's face");
+  sub->add_option("--face-warp", a->o.augment.face_warp,
+                  "augment: body (through the fitted body, turning with the head) or similarity")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"body", "similarity"}));
   sub->add_option("--restore", a->o.augment.restore_command,
                   "augment: a restoration command run on each frame ({in} {out})");
   sub->add_option("--motions", a->motions,

@@ -87,7 +87,9 @@ json stage_settings(const std::string& stage, const std::string& photo, const Cr
             {"supersample", o.generate.supersample},
             {"photo_weight", o.generate.photo_weight}};
   if (stage == "augment")
-    return {{"face_fusion", o.augment.face_fusion}, {"restore", o.augment.restore_command}};
+    return {{"face_fusion", o.augment.face_fusion},
+            {"face_warp", o.augment.face_warp},
+            {"restore", o.augment.restore_command}};
   if (stage == "reconstruct") {
     const TrainOptions& t = o.reconstruct.train;
     return {{"iterations", t.iterations},
