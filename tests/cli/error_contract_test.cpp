@@ -396,6 +396,14 @@ std::vector<Bad> bad_images() {
                             [](const std::string& p) { put(p, png_claiming(60000, 60000)); }},
                            {"PNG claiming 20000 x 20000 pixels",
                             [](const std::string& p) { put(p, png_claiming(20000, 20000)); }},
+                           {"PNG chunk claiming 1 GB",
+                            [](const std::string& p) {
+                              write_image(p, 16, 16);
+                              auto b = read_file_bytes(p);
+                              for (int k = 0; k < 4; ++k)  // the chunk after IHDR
+                                b[33 + k] = uint8_t(0x40000000u >> (24 - 8 * k));
+                              put(p, b);
+                            }},
                            {"truncated PNG", [](const std::string& p) {
                               write_image(p, 16, 16);
                               auto b = read_file_bytes(p);
