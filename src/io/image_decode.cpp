@@ -79,9 +79,15 @@ bool image_header_size(const std::vector<uint8_t>& b, int64_t& width, int64_t& h
   }
   if (n >= 4 && b[0] == 0xFF && b[1] == 0xD8) {  // JPEG: walk the segments to a start of frame
     size_t i = 2;
-    while (i + 4 <= n && b[i] == 0xFF) {
+    while (i + 4 <= n) {
+      // As libjpeg reads markers: bytes before a marker that are not 0xFF are skipped (it warns
+      // of "extraneous bytes" and goes on), and so are 0xFF fill bytes.
+      if (b[i] != 0xFF) {
+        ++i;
+        continue;
+      }
       const uint8_t marker = b[i + 1];
-      if (marker == 0xFF) {  // fill byte
+      if (marker == 0xFF || marker == 0x00) {  // fill byte, or a stuffed 0xFF
         ++i;
         continue;
       }

@@ -74,6 +74,23 @@ TEST(ImageDecode, PngCutBeforeIendIsRefused) {
   EXPECT_NE(refusal(bytes), "");
 }
 
+TEST(ImageDecode, JpegSizeIsFoundAfterExtraneousBytes) {
+  // libjpeg skips bytes that are not a marker (with a warning) and reads the frame header after
+  // them: so must the size check, or a JPEG claiming a gigapixel slips past it.
+  std::vector<uint8_t> bytes = encode(".jpg");
+  size_t sof = 2;
+  while (sof + 1 < bytes.size() && !(bytes[sof] == 0xFF && bytes[sof + 1] == 0xC0)) ++sof;
+  ASSERT_LT(sof + 9, bytes.size());
+  bytes[sof + 5] = 0x84, bytes[sof + 6] = 0x06;  // height 33798
+  bytes[sof + 7] = 0x7A, bytes[sof + 8] = 0x07;  // width 31239
+  bytes.insert(bytes.begin() + long(sof), {'c', 'c', 'c', 'c'});
+  int64_t w = 0, h = 0;
+  ASSERT_TRUE(image_header_size(bytes, w, h));
+  EXPECT_EQ(w, 31239);
+  EXPECT_EQ(h, 33798);
+  EXPECT_NE(refusal(bytes).find("31239 x 33798"), std::string::npos);
+}
+
 TEST(ImageDecode, EmptyFileIsRefused) {
   EXPECT_NE(refusal({}).find("empty"), std::string::npos);
 }
