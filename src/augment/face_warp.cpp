@@ -14,14 +14,7 @@ Eigen::MatrixXd photo_surface(const Eigen::MatrixXd& V, const Eigen::MatrixXi& F
                               const Image& mask, double depth_tolerance) {
   if (mask.width != cam.width || mask.height != cam.height || mask.channels < 1)
     throw Error("face warp: the photo's mask is not the camera's size");
-  MeshRenderInput ri;
-  ri.vertices = &V;
-  ri.faces = &F;
-  MeshRenderOptions ro;
-  ro.want_rgb = false;
-  ro.want_depth = true;
-  ro.cull_backfaces = true;
-  const MeshRenderOutput depth = render_mesh(cam, ri, ro);
+  const MeshRenderOutput depth = render_depth(V, F, cam);
   const Eigen::MatrixXd N = vertex_normals(V, F);
   const Eigen::Vector3d eye = cam.centre();
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(V.rows(), 3);

@@ -47,20 +47,6 @@ bool in_mask(const Image& m, double u, double v) {
   return x >= 0 && y >= 0 && x < m.width && y < m.height && m.at(x, y, 0) >= 0.5f;
 }
 
-MeshRenderOutput render_depth(const Eigen::MatrixXd& V, const Eigen::MatrixXi& F, const Camera& cam,
-                              const std::vector<int>* labels = nullptr) {
-  MeshRenderInput ri;
-  ri.vertices = &V;
-  ri.faces = &F;
-  ri.labels = labels;
-  MeshRenderOptions ro;
-  ro.want_rgb = false;
-  ro.want_depth = true;
-  ro.want_labels = labels != nullptr;
-  ro.cull_backfaces = true;
-  return render_mesh(cam, ri, ro);
-}
-
 // Silhouette offsets (metres along the vertex normals) at the body's rim vertices: from each rim
 // vertex, along its normal's direction in the image, how far the photo's mask goes on (or, when
 // the vertex is already outside the mask, how far inside the mask begins). A march that meets the

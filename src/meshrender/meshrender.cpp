@@ -527,4 +527,18 @@ Image labels_to_rgb(const std::vector<int>& labels, int width, int height,
   return out;
 }
 
+MeshRenderOutput render_depth(const Eigen::MatrixXd& V, const Eigen::MatrixXi& F, const Camera& cam,
+                              const std::vector<int>* labels) {
+  MeshRenderInput ri;
+  ri.vertices = &V;
+  ri.faces = &F;
+  ri.labels = labels;
+  MeshRenderOptions ro;
+  ro.want_rgb = false;
+  ro.want_depth = true;
+  ro.want_labels = labels != nullptr;
+  ro.cull_backfaces = true;
+  return render_mesh(cam, ri, ro);
+}
+
 }  // namespace ks

@@ -69,6 +69,11 @@ struct MeshRenderOutput {
 MeshRenderOutput render_mesh(const Camera& camera, const MeshRenderInput& input,
                              const MeshRenderOptions& options = {});
 
+// The depth buffer of a closed surface seen from outside (back faces culled), no colour; with
+// `labels`, also the label of the surface seen at each pixel.
+MeshRenderOutput render_depth(const Eigen::MatrixXd& vertices, const Eigen::MatrixXi& faces,
+                              const Camera& camera, const std::vector<int>* labels = nullptr);
+
 // Normal map image: rgb = 0.5 + 0.5 * (nx, -ny, -nz) (x right, y up, z towards the viewer; a
 // surface facing the camera is blue), background where the normal is zero.
 Image normal_to_rgb(const Image& normal, const Eigen::Vector3d& background = {1.0, 1.0, 1.0});
