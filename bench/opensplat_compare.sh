@@ -22,7 +22,8 @@
 #
 # Environment: OS_BUILD_DIR (default ${TMPDIR:-/tmp}/kinesplat-opensplat-compare), KINESPLAT
 # (default build/kinesplat), GAUSSIANS (100000), SIZE (512), STEPS (timed steps per run, 10),
-# RUNS (5), THREADS ("1 2"), KS_LOCK (a file: every build and timed run holds `flock KS_LOCK`),
+# RUNS (5), THREADS ("1 2"), KS_LOCK (a file: the builds, and the timings of each thread count,
+# hold `flock KS_LOCK`),
 # JOBS (build parallelism, 2).
 set -euo pipefail
 
@@ -42,52 +43,56 @@ steps=${STEPS:-10}
 runs=${RUNS:-5}
 threads_list=${THREADS:-1 2}
 jobs=${JOBS:-2}
-locked() { if [ -n "${KS_LOCK:-}" ]; then flock "$KS_LOCK" "$@"; else "$@"; fi; }
+# The lock is held once for steps 1-3 (the builds and the scene) and once per thread count for
+# the timings (all RUNS of both renderers, a few minutes).
+if [ -n "${KS_LOCK:-}" ]; then exec 9>>"$KS_LOCK"; fi
+hold() { if [ -n "${KS_LOCK:-}" ]; then flock "$1" 9; fi; }
 
 mkdir -p "$build"
 rev=$(git -C "$src" rev-parse --short HEAD 2>/dev/null || echo unknown)
 echo "OpenSplat source: $src (commit $rev); build dir: $build"
 
+hold -x
 # 1. OpenSplat, CPU runtime, offline. The generated stand-ins only declare the target names its
 # CMakeLists links (the app, which is not built here); the headers are the system's.
 shims=$build/fetchcontent-shims
-for dep in nlohmann_json:nlohmann_json nanoflann:nanoflann cxxopts:cxxopts; do
-  name=${dep%%:*}
+for name in nlohmann_json nanoflann cxxopts; do
   mkdir -p "$shims/$name"
   cat >"$shims/$name/CMakeLists.txt" <<EOF
 cmake_minimum_required(VERSION 3.21)
 project(${name}_system_headers LANGUAGES CXX)
 add_library($name INTERFACE)
-add_library(${dep%%:*}::${dep##*:} ALIAS $name)
+add_library($name::$name ALIAS $name)
 EOF
 done
-locked cmake -S "$src" -B "$build/opensplat" -DGPU_RUNTIME=CPU -DCMAKE_BUILD_TYPE=Release \
+cmake -S "$src" -B "$build/opensplat" -DGPU_RUNTIME=CPU -DCMAKE_BUILD_TYPE=Release \
   -DFETCHCONTENT_FULLY_DISCONNECTED=ON \
   -DFETCHCONTENT_SOURCE_DIR_NLOHMANN_JSON="$shims/nlohmann_json" \
   -DFETCHCONTENT_SOURCE_DIR_NANOFLANN="$shims/nanoflann" \
   -DFETCHCONTENT_SOURCE_DIR_CXXOPTS="$shims/cxxopts" >"$build/opensplat-configure.log" 2>&1 ||
   { tail -30 "$build/opensplat-configure.log"; exit 1; }
-locked cmake --build "$build/opensplat" --target gsplat_cpu -j "$jobs" >"$build/opensplat-build.log" 2>&1 ||
+cmake --build "$build/opensplat" --target gsplat_cpu -j "$jobs" >"$build/opensplat-build.log" 2>&1 ||
   { tail -30 "$build/opensplat-build.log"; exit 1; }
 lib=$build/opensplat/libgsplat_cpu.a
 [ -f "$lib" ] || { echo "error: $lib was not built" >&2; exit 1; }
 
 # 2. The driver.
-locked cmake -S "$repo/bench/opensplat_compare" -B "$build/driver" -DCMAKE_BUILD_TYPE=Release \
+cmake -S "$repo/bench/opensplat_compare" -B "$build/driver" -DCMAKE_BUILD_TYPE=Release \
   -DOPENSPLAT_SRC="$src" -DGSPLAT_CPU_LIB="$lib" >"$build/driver-configure.log" 2>&1 ||
   { tail -30 "$build/driver-configure.log"; exit 1; }
-locked cmake --build "$build/driver" -j "$jobs" >"$build/driver-build.log" 2>&1 ||
+cmake --build "$build/driver" -j "$jobs" >"$build/driver-build.log" 2>&1 ||
   { tail -30 "$build/driver-build.log"; exit 1; }
 driver=$build/driver/opensplat_driver
 
 # 3. The scene, and kinesplat's image of it.
 scene=$build/scene.ply cam=$build/cam.json
-locked "$ks" bench raster --gaussians "$gaussians" --width "$size" --height "$size" --frames 1 \
+"$ks" bench raster --gaussians "$gaussians" --width "$size" --height "$size" --frames 1 \
   --save-ply "$scene" --save-camera "$cam" >/dev/null
-locked "$ks" render "$scene" --camera "$cam" --out "$build/kinesplat.png" --bits 16
-OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 locked "$driver" --ply "$scene" --camera "$cam" --threads 1 \
+"$ks" render "$scene" --camera "$cam" --out "$build/kinesplat.png" --bits 16
+OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 "$driver" --ply "$scene" --camera "$cam" --threads 1 \
   --steps 1 --warmup 0 --out "$build/opensplat.png" --compare "$build/kinesplat.png" |
   grep PSNR
+hold -u
 
 # 4. Timings: per step, median over STEPS within a run, then the median over RUNS. Each run's
 # full output is kept in the build directory (kinesplat-T-R.txt, opensplat-T-R.txt).
@@ -96,11 +101,12 @@ field() { sed -n "s/^$1: median \([0-9.]*\) ms.*/\1/p" "$2"; }
 declare -A med
 for t in $threads_list; do
   declare -A runs_of=()
+  hold -x
   for r in $(seq "$runs"); do
     kout=$build/kinesplat-$t-$r.txt oout=$build/opensplat-$t-$r.txt
-    OMP_NUM_THREADS=$t locked "$ks" bench raster --ply "$scene" --camera "$cam" --backward \
+    OMP_NUM_THREADS=$t "$ks" bench raster --ply "$scene" --camera "$cam" --backward \
       --frames "$steps" --threads "$t" >"$kout"
-    OMP_NUM_THREADS=$t MKL_NUM_THREADS=$t locked "$driver" --ply "$scene" --camera "$cam" \
+    OMP_NUM_THREADS=$t MKL_NUM_THREADS=$t "$driver" --ply "$scene" --camera "$cam" \
       --threads "$t" --steps "$steps" --warmup 1 >"$oout"
     for m in forward forward+backward; do
       runs_of[ks $m]+="$(field "$m" "$kout")"$'\n'
@@ -110,6 +116,7 @@ for t in $threads_list; do
       "$(field forward "$oout") ms; forward+backward kinesplat $(field forward+backward "$kout")" \
       "ms, OpenSplat $(field forward+backward "$oout") ms"
   done
+  hold -u
   for key in "${!runs_of[@]}"; do med[$t $key]=$(printf '%s' "${runs_of[$key]}" | median); done
   unset runs_of
 done
