@@ -100,5 +100,24 @@ TEST(RenderCli, BenchRasterPrintsSummary) {
   EXPECT_NE(r.out.find("forward+backward"), std::string::npos) << r.out;
 }
 
+TEST(RenderCli, BenchRasterTimesGivenScene) {
+  TmpDir d;
+  test::SceneOptions o;
+  o.n = 30;
+  write_ply((d.p / "s.ply").string(), test::random_scene(o, 5));
+  test::test_camera(40, 30).save((d.p / "cam.json").string());
+  const std::string args = " --camera " + (d.p / "cam.json").string() + " --frames 1 --backward";
+  const CliRun r = run_cli("bench raster --ply " + (d.p / "s.ply").string() + args);
+  ASSERT_EQ(r.status, 0) << r.err;
+  // The scene's size and the camera's image size, not the defaults (110000, 512x768).
+  EXPECT_NE(r.out.find("gaussians 30 "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("40x30"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("forward+backward"), std::string::npos) << r.out;
+  // A missing .ply is a clear error naming the file.
+  const CliRun bad = run_cli("bench raster --ply " + (d.p / "none.ply").string() + args);
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.err.find("none.ply"), std::string::npos) << bad.err;
+}
+
 }  // namespace
 }  // namespace ks
