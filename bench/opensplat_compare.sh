@@ -21,7 +21,8 @@
 # Nothing of OpenSplat is modified or copied.
 #
 # Environment: OS_BUILD_DIR (default ${TMPDIR:-/tmp}/kinesplat-opensplat-compare), KINESPLAT
-# (default build/kinesplat), GAUSSIANS (100000), SIZE (512), STEPS (timed steps per run, 10),
+# (default build/kinesplat; the driver links the libkinesplat_lib.a beside it, or KINESPLAT_LIB),
+# GAUSSIANS (100000), SIZE (512), STEPS (timed steps per run, 10),
 # RUNS (5), THREADS ("1 2"), KS_LOCK (a file: the builds, and the timings of each thread count,
 # hold `flock KS_LOCK`),
 # JOBS (build parallelism, 2).
@@ -37,6 +38,8 @@ build=${OS_BUILD_DIR:-${TMPDIR:-/tmp}/kinesplat-opensplat-compare}
 case "$build/" in "$repo"/*) echo "error: OS_BUILD_DIR must be outside the repository" >&2; exit 2 ;; esac
 ks=${KINESPLAT:-$repo/build/kinesplat}
 [ -x "$ks" ] || { echo "error: $ks not built (make build)" >&2; exit 2; }
+kslib=${KINESPLAT_LIB:-$(dirname "$ks")/libkinesplat_lib.a}
+[ -f "$kslib" ] || { echo "error: $kslib not found (make build; or set KINESPLAT_LIB)" >&2; exit 2; }
 gaussians=${GAUSSIANS:-100000}
 size=${SIZE:-512}
 steps=${STEPS:-10}
@@ -78,7 +81,8 @@ lib=$build/opensplat/libgsplat_cpu.a
 
 # 2. The driver.
 cmake -S "$repo/bench/opensplat_compare" -B "$build/driver" -DCMAKE_BUILD_TYPE=Release \
-  -DOPENSPLAT_SRC="$src" -DGSPLAT_CPU_LIB="$lib" >"$build/driver-configure.log" 2>&1 ||
+  -DOPENSPLAT_SRC="$src" -DGSPLAT_CPU_LIB="$lib" -DKINESPLAT_LIB="$kslib" \
+  >"$build/driver-configure.log" 2>&1 ||
   { tail -30 "$build/driver-configure.log"; exit 1; }
 cmake --build "$build/driver" -j "$jobs" >"$build/driver-build.log" 2>&1 ||
   { tail -30 "$build/driver-build.log"; exit 1; }

@@ -17,13 +17,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
-#include <nlohmann/json.hpp>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "core/camera.hpp"
+#include "gaussians/ply.hpp"
 #include "gsplat.hpp"
 #include "project_gaussians.hpp"
 #include "rasterize_gaussians.hpp"
@@ -36,84 +35,22 @@ struct Scene {
   torch::Tensor means, log_scales, quats, opacity_logits, sh;  // sh: [n, bases, 3]
 };
 
-// Minimal reader for the standard 3DGS .ply (binary little endian, float properties only).
-Scene read_ply(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error(path + ": cannot open");
-  std::string line;
-  std::vector<std::string> props;
-  int64_t n = -1;
-  bool in_vertex = false;
-  if (!std::getline(f, line) || line != "ply") throw std::runtime_error(path + ": not a PLY");
-  while (std::getline(f, line)) {
-    std::istringstream ls(line);
-    std::string w;
-    ls >> w;
-    if (w == "format") {
-      std::string fmt;
-      ls >> fmt;
-      if (fmt != "binary_little_endian")
-        throw std::runtime_error(path + ": only binary_little_endian is supported");
-    } else if (w == "element") {
-      std::string name;
-      int64_t count = 0;
-      ls >> name >> count;
-      in_vertex = name == "vertex";
-      if (in_vertex)
-        n = count;
-      else if (n >= 0)
-        throw std::runtime_error(path + ": elements after vertex are not supported");
-    } else if (w == "property" && in_vertex) {
-      std::string type, name;
-      ls >> type >> name;
-      if (type != "float") throw std::runtime_error(path + ": property " + name + " is not float");
-      props.push_back(name);
-    } else if (w == "end_header") {
-      break;
-    }
-  }
-  if (n <= 0) throw std::runtime_error(path + ": no vertices");
-  auto col = [&](const std::string& name) -> int {
-    auto it = std::find(props.begin(), props.end(), name);
-    if (it == props.end()) throw std::runtime_error(path + ": missing property " + name);
-    return int(it - props.begin());
-  };
-  int rest = 0;
-  while (std::find(props.begin(), props.end(), "f_rest_" + std::to_string(rest)) != props.end())
-    ++rest;
-  if (rest % 3) throw std::runtime_error(path + ": f_rest count is not a multiple of 3");
-  const int bases = 1 + rest / 3;
-  const size_t stride = props.size();
-  std::vector<float> raw(size_t(n) * stride);
-  f.read(reinterpret_cast<char*>(raw.data()), std::streamsize(raw.size() * sizeof(float)));
-  if (!f) throw std::runtime_error(path + ": truncated vertex data");
-
+// The scene through kinesplat's own readers (gaussians/ply, core/camera), copied into tensors.
+// ks::Gaussians' SH layout, [n][k][rgb], is the [n, bases, 3] tensor OpenSplat takes.
+Scene read_scene_ply(const std::string& path) {
+  const ks::Gaussians g = ks::read_ply(path);
   Scene s;
-  s.n = n;
-  s.sh_bases = bases;
-  auto opt = torch::TensorOptions().dtype(torch::kFloat32);
-  s.means = torch::empty({n, 3}, opt);
-  s.log_scales = torch::empty({n, 3}, opt);
-  s.quats = torch::empty({n, 4}, opt);
-  s.opacity_logits = torch::empty({n, 1}, opt);
-  s.sh = torch::empty({n, bases, 3}, opt);
-  const int cx = col("x"), cdc = col("f_dc_0"), cop = col("opacity"), csc = col("scale_0"),
-            crot = col("rot_0"), crest = rest ? col("f_rest_0") : 0;
-  float *m = s.means.data_ptr<float>(), *sc = s.log_scales.data_ptr<float>(),
-        *q = s.quats.data_ptr<float>(), *op = s.opacity_logits.data_ptr<float>(),
-        *sh = s.sh.data_ptr<float>();
-  for (int64_t i = 0; i < n; ++i) {
-    const float* r = raw.data() + size_t(i) * stride;
-    for (int k = 0; k < 3; ++k) m[i * 3 + k] = r[cx + k];
-    for (int k = 0; k < 3; ++k) sc[i * 3 + k] = r[csc + k];
-    for (int k = 0; k < 4; ++k) q[i * 4 + k] = r[crot + k];
-    op[i] = r[cop];
-    float* o = sh + size_t(i) * bases * 3;
-    for (int c = 0; c < 3; ++c) o[c] = r[cdc + c];
-    // f_rest is channel-major: all of R's coefficients 1.., then G's, then B's.
-    for (int k = 1; k < bases; ++k)
-      for (int c = 0; c < 3; ++c) o[k * 3 + c] = r[crest + c * (bases - 1) + (k - 1)];
-  }
+  s.n = int64_t(g.size());
+  s.sh_bases = g.coeffs();
+  if (s.n == 0) throw std::runtime_error(path + ": no Gaussians");
+  auto copy = [](const std::vector<float>& v, std::vector<int64_t> shape) {
+    return torch::from_blob(const_cast<float*>(v.data()), shape, torch::kFloat32).clone();
+  };
+  s.means = copy(g.means, {s.n, 3});
+  s.log_scales = copy(g.log_scales, {s.n, 3});
+  s.quats = copy(g.quats, {s.n, 4});
+  s.opacity_logits = copy(g.opacity_logits, {s.n, 1});
+  s.sh = copy(g.sh, {s.n, s.sh_bases, 3});
   return s;
 }
 
@@ -124,28 +61,16 @@ struct Cam {
 };
 
 Cam read_camera(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw std::runtime_error(path + ": cannot open");
-  nlohmann::json j;
-  try {
-    f >> j;
-    Cam c;
-    c.width = j.at("width").get<int>();
-    c.height = j.at("height").get<int>();
-    c.fx = j.at("fx").get<float>();
-    c.fy = j.at("fy").get<float>();
-    c.cx = j.at("cx").get<float>();
-    c.cy = j.at("cy").get<float>();
-    for (int r = 0; r < 3; ++r) {
-      c.t[r] = j.at("t").at(r).get<float>();
-      for (int k = 0; k < 3; ++k) c.R[r][k] = j.at("R").at(r).at(k).get<float>();
-    }
-    if (c.width <= 0 || c.height <= 0 || c.fx <= 0 || c.fy <= 0)
-      throw std::runtime_error("bad size or focal length");
-    return c;
-  } catch (const std::exception& e) {
-    throw std::runtime_error(path + ": " + e.what());
+  const ks::Camera k = ks::Camera::load(path);  // validates keys, shapes, R and the focal length
+  Cam c;
+  c.width = k.width;
+  c.height = k.height;
+  c.fx = float(k.fx), c.fy = float(k.fy), c.cx = float(k.cx), c.cy = float(k.cy);
+  for (int r = 0; r < 3; ++r) {
+    c.t[r] = float(k.t(r));
+    for (int j = 0; j < 3; ++j) c.R[r][j] = float(k.R(r, j));
   }
+  return c;
 }
 
 double median(std::vector<double> v) {
@@ -196,7 +121,7 @@ int main(int argc, char** argv) {
   try {
     const Args a = parse(argc, argv);
     torch::set_num_threads(a.threads);
-    const Scene s = read_ply(a.ply);
+    const Scene s = read_scene_ply(a.ply);
     const Cam c = read_camera(a.camera);
     const int W = c.width, H = c.height;
     auto opt = torch::TensorOptions().dtype(torch::kFloat32);
