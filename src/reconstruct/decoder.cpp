@@ -1,5 +1,8 @@
 #include "reconstruct/decoder.hpp"
 
+#include <algorithm>
+
+#include "core/error.hpp"
 #include "mesh/trimesh.hpp"
 
 namespace ks {
@@ -26,12 +29,15 @@ void Decoder::init(const DecoderOptions& o, uint64_t seed, const Eigen::MatrixXd
   geo_.pack(geo_params_);
   app_.pack(app_params_);
   dplanes_.assign(tp_.size(), 0.f);
+  touched_.assign(tp_.size() / size_t(tp_.channels), 0);
+  touched_ranges_.clear();
+  noted_xs_.clear(), noted_ys_.clear(), noted_zs_.clear();
   geo_grad_.assign(geo_params_.size(), 0.f);
   app_grad_.assign(app_params_.size(), 0.f);
 }
 
 void Decoder::add_parameters(Adam& adam, const OptimizerOptions& lr) {
-  adam.add_group("triplane", &tp_.planes, &dplanes_, lr.lr_triplane);
+  adam.add_group("triplane", &tp_.planes, &dplanes_, lr.lr_triplane, &touched_ranges_);
   adam.add_group("geometry_mlp", &geo_params_, &geo_grad_, lr.lr_mlp);
   adam.add_group("appearance_mlp", &app_params_, &app_grad_, lr.lr_mlp);
 }
@@ -44,6 +50,14 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
   app_.unpack(app_params_);
   const int n = int(anchors.rows());
   const int F = tp_.feature_dim();
+  if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_) {
+    // New lookup points (the first decode, or density control changed the anchors): the texels
+    // they read join the touched set (which never shrinks: a texel left behind keeps its
+    // moments, and Adam keeps moving it as before).
+    triplane_mark_texels(tp_, xs.data(), ys.data(), zs.data(), n, &touched_);
+    touched_ranges_ = texel_ranges(touched_, tp_.channels);
+    noted_xs_ = xs, noted_ys_ = ys, noted_zs_ = zs;
+  }
   feats_.resize(size_t(n) * F);
   triplane_forward(tp_, xs.data(), ys.data(), zs.data(), n, feats_.data());
   Eigen::Map<const Mlp::Mat> X(feats_.data(), F, n);
@@ -109,7 +123,11 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
   mlp_backward(geo_, geo_cache_, dYg_, ggeo_, &dXg_);
   mlp_backward(app_, app_cache_, dYa_, gapp_, &dXa_);
   dXg_ += dXa_;
-  dplanes_.assign(tp_.size(), 0.f);
+  // Only texels of the touched set are ever written (the points are the last decode's).
+  if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_)
+    throw Error("Decoder::backward: the points differ from the last decode's");
+  for (const auto& [b, e] : touched_ranges_)
+    std::fill(dplanes_.begin() + long(b), dplanes_.begin() + long(e), 0.f);
   triplane_backward(tp_, xs.data(), ys.data(), zs.data(), n, dXg_.data(), dplanes_.data());
   ggeo_.pack(geo_grad_);
   gapp_.pack(app_grad_);

@@ -73,6 +73,12 @@ class Decoder {
   float base_log_scale_ = 0, init_opacity_logit_ = 0;
   float filter_var_ = 0;
   float sh_init_[3] = {0, 0, 0};
+  // The texels any lookup so far has read (only those ever get a gradient), as ranges of
+  // entries: Adam steps only these, and backward zeroes only these of dplanes_. The points they
+  // were last updated for.
+  std::vector<uint8_t> touched_;
+  std::vector<std::pair<size_t, size_t>> touched_ranges_;
+  std::vector<float> noted_xs_, noted_ys_, noted_zs_;
   int sdim_ = 1, geo_out_ = 9;
 };
 

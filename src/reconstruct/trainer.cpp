@@ -340,7 +340,7 @@ struct Trainer::Impl {
     }
     if (opt.density) {
       st.iteration = it;
-      st.canonical = canon;
+      if (opt.density->acts_at(it, st.total_iterations)) st.canonical = canon;
       opt.density->step(it, st);
     }
   }
