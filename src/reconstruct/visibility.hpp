@@ -1,0 +1,34 @@
+#pragma once
+// Which Gaussians a training frame can see, decided before decoding so that the decoders, the
+// triplane and the rasterizer work only for those (issue 17). A depth test against the points
+// themselves: the points (each Gaussian's centre from its last decode, posed for the frame) are
+// projected into a coarse depth buffer of `cell` x `cell` pixel cells holding each cell's nearest
+// depth; a point is hidden when it lies more than `depth_margin` behind the *farthest* of the
+// nearest depths in the (2 reach + 1)^2 cells around its own, so near an occluding edge (where a
+// neighbouring cell sees the surface behind) and next to empty cells (the silhouette) nothing is
+// hidden. Points off the image or behind the camera count as seen (the rasterizer decides).
+// No normals are used, so open surfaces (the garment layer's tube) and Gaussians pulled away from
+// their anchors are judged by where they are.
+#include <cstdint>
+#include <vector>
+
+#include "core/camera.hpp"
+
+namespace ks {
+
+struct VisibilityOptions {
+  // Decode and draw only the Gaussians a frame can see, from iteration start * iterations on
+  // (before that every Gaussian, while the front surface is still translucent).
+  bool enabled = true;
+  float start = 0.1f;
+  float depth_margin = 0.03f;  // metres behind the surface in front before a point is hidden
+  int cell = 4;                // depth-buffer cell, pixels
+  int reach = 1;               // cells each side compared with
+};
+
+// points: 3n world positions. Writes the indices of the points not hidden (increasing) and
+// returns their count. Throws ks::Error for a cell < 1 or a reach < 0.
+int visible_points(const float* points, int n, const Camera& camera, const VisibilityOptions& o,
+                   std::vector<int>* visible);
+
+}  // namespace ks
