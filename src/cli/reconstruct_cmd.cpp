@@ -97,10 +97,15 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--visibility", args->opt.visibility.enabled,
                   "Decode and draw only the Gaussians a training frame can see (a depth test "
-                  "against the last decode's centres), from --visibility-start on")
+                  "against the last decode's Gaussians), from --visibility-start on: faster "
+                  "steps, a little less full-frame PSNR")
       ->capture_default_str();
   sub->add_option("--visibility-start", args->opt.visibility.start,
                   "Fraction of the iterations decoded whole first (with --visibility)")
+      ->capture_default_str();
+  sub->add_option("--visibility-whole-every", args->opt.visibility.whole_every,
+                  "With --visibility, every this many steps still decodes and draws every "
+                  "Gaussian (0 = never, 1 = always)")
       ->capture_default_str();
   sub->add_option("--visibility-margin", args->opt.visibility.depth_margin,
                   "Metres behind the nearest surface around it before a Gaussian is hidden")

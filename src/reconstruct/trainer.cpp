@@ -39,6 +39,7 @@ void check_options(const std::vector<LoadedFrame>& frames, const TrainOptions& o
   if (!(v.start >= 0.f && v.start <= 1.f))
     throw Error("reconstruct: --visibility-start must be in [0, 1]");
   if (!(v.depth_margin >= 0.f)) throw Error("reconstruct: --visibility-margin must be >= 0");
+  if (v.whole_every < 0) throw Error("reconstruct: --visibility-whole-every must be >= 0");
   if (v.cell < 1 || v.reach < 0)
     throw Error("reconstruct: the visibility cell must be >= 1 pixel and its reach >= 0");
 }
@@ -97,7 +98,7 @@ struct Trainer::Impl {
   // Visibility (reconstruct/visibility.hpp): the Gaussians the frame can see, their posed
   // centres from the last decode, and whether a whole decode of this vertex set has run.
   std::vector<int> visible;
-  std::vector<float> vis_points;
+  std::vector<float> vis_points, vis_sigmas;
   bool whole_decoded = false;
   long visible_sum = 0, visible_steps = 0;
 
@@ -357,7 +358,7 @@ struct Trainer::Impl {
     const VisibilityOptions& vo = opt.visibility;
     const int n = st.num_vertices();
     if (!vo.enabled || !whole_decoded || it < int(vo.start * float(opt.iterations)) ||
-        int(canon.size()) != n)
+        int(canon.size()) != n || (vo.whole_every > 0 && it % vo.whole_every == 0))
       return nullptr;
     const int k = int(st.skin_joints.size()) / std::max(1, n);
     vis_points.resize(3 * size_t(n));
@@ -371,7 +372,13 @@ struct Trainer::Impl {
       const Eigen::Vector3d p = M.leftCols<3>() * x + M.col(3);
       for (int c = 0; c < 3; ++c) vis_points[3 * size_t(i) + c] = float(p(c));
     }
-    const int m = visible_points(vis_points.data(), n, fr.camera, vo, &visible);
+    // Each Gaussian's largest standard deviation at its last decode (the footprint).
+    vis_sigmas.resize(size_t(n));
+    for (int i = 0; i < n; ++i) {
+      const float* ls = &canon.log_scales[3 * size_t(i)];
+      vis_sigmas[size_t(i)] = std::exp(std::max(ls[0], std::max(ls[1], ls[2])));
+    }
+    const int m = visible_points(vis_points.data(), vis_sigmas.data(), n, fr.camera, vo, &visible);
     if (m < n) visible_sum += m, ++visible_steps;
     return m < n ? &visible : nullptr;
   }

@@ -45,7 +45,7 @@ TEST(Visibility, HidesWhatLiesBehindASurfaceAndNothingNearItsEdges) {
   const int n = int(pts.size() / 3);
   VisibilityOptions o;
   std::vector<int> vis;
-  const int m = visible_points(pts.data(), n, test_camera(), o, &vis);
+  const int m = visible_points(pts.data(), nullptr, n, test_camera(), o, &vis);
   EXPECT_EQ(m, int(vis.size()));
   EXPECT_TRUE(std::is_sorted(vis.begin(), vis.end()));
   for (int i = 0; i < back; ++i) EXPECT_TRUE(contains(vis, i)) << "front point " << i;
@@ -77,7 +77,7 @@ TEST(Visibility, SeesThroughAHoleAndKeepsPointsOffTheImage) {
   pts.insert(pts.end(), {5.f, 0.f, 2.6f});  // off the image
   const int n = int(pts.size() / 3);
   std::vector<int> vis;
-  visible_points(pts.data(), n, test_camera(), VisibilityOptions{}, &vis);
+  visible_points(pts.data(), nullptr, n, test_camera(), VisibilityOptions{}, &vis);
   for (int i = back; i < off; ++i) {
     const float r = std::max(std::abs(pts[3 * size_t(i)]), std::abs(pts[3 * size_t(i) + 1]));
     if (r < 0.2f) {
@@ -94,8 +94,27 @@ TEST(Visibility, SeesThroughAHoleAndKeepsPointsOffTheImage) {
   std::vector<float> close;
   add_plane(&close, 2.f, 0.4f, 0.01f);
   add_plane(&close, 2.02f, 0.3f, 0.02f);
-  visible_points(close.data(), int(close.size() / 3), test_camera(), VisibilityOptions{}, &vis);
+  visible_points(close.data(), nullptr, int(close.size() / 3), test_camera(), VisibilityOptions{},
+                 &vis);
   EXPECT_EQ(vis.size(), close.size() / 3);
+}
+
+// A point behind the front plane a cell and a bit inside its edge is hidden as a point, but not
+// as a Gaussian whose footprint (3 sigma, 6 px here) reaches past the edge.
+TEST(Visibility, AWideFootprintReachingPastTheEdgeIsNotHidden) {
+  std::vector<float> pts;
+  add_plane(&pts, 2.f, 0.4f, 0.01f);  // its edge 20 px right of the centre
+  const int p = int(pts.size() / 3);
+  pts.insert(pts.end(), {0.38f, 0.f, 2.5f});  // 15.2 px right of the centre, 60 cm behind
+  const int n = int(pts.size() / 3);
+  std::vector<float> sig(size_t(n), 0.f);
+  std::vector<int> vis;
+  visible_points(pts.data(), sig.data(), n, test_camera(), VisibilityOptions{}, &vis);
+  EXPECT_FALSE(contains(vis, p));
+  sig[size_t(p)] = 0.05f;
+  visible_points(pts.data(), sig.data(), n, test_camera(), VisibilityOptions{}, &vis);
+  EXPECT_TRUE(contains(vis, p));
+  EXPECT_EQ(int(vis.size()), n);
 }
 
 TEST(Visibility, RejectsBadOptions) {
@@ -103,10 +122,10 @@ TEST(Visibility, RejectsBadOptions) {
   std::vector<int> vis;
   VisibilityOptions o;
   o.cell = 0;
-  EXPECT_THROW(visible_points(pts.data(), 1, test_camera(), o, &vis), Error);
+  EXPECT_THROW(visible_points(pts.data(), nullptr, 1, test_camera(), o, &vis), Error);
   o.cell = 4;
   o.reach = -1;
-  EXPECT_THROW(visible_points(pts.data(), 1, test_camera(), o, &vis), Error);
+  EXPECT_THROW(visible_points(pts.data(), nullptr, 1, test_camera(), o, &vis), Error);
 }
 
 }  // namespace
