@@ -97,7 +97,7 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--visibility", args->opt.visibility.enabled,
                   "Decode and draw only the Gaussians a training frame can see (a depth test "
-                  "against the last decode's Gaussians), from --visibility-start on: faster "
+                  "against the last decode's centres), from --visibility-start on: faster "
                   "steps, a little less full-frame PSNR")
       ->capture_default_str();
   sub->add_option("--visibility-start", args->opt.visibility.start,
@@ -106,6 +106,10 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   sub->add_option("--visibility-whole-every", args->opt.visibility.whole_every,
                   "With --visibility, every this many steps still decodes and draws every "
                   "Gaussian (0 = never, 1 = always)")
+      ->capture_default_str();
+  sub->add_option("--visibility-footprint", args->opt.visibility.footprint,
+                  "With --visibility, compare each Gaussian with the cells its footprint covers "
+                  "(hides fewer)")
       ->capture_default_str();
   sub->add_option("--visibility-margin", args->opt.visibility.depth_margin,
                   "Metres behind the nearest surface around it before a Gaussian is hidden")

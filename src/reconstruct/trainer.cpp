@@ -372,13 +372,16 @@ struct Trainer::Impl {
       const Eigen::Vector3d p = M.leftCols<3>() * x + M.col(3);
       for (int c = 0; c < 3; ++c) vis_points[3 * size_t(i) + c] = float(p(c));
     }
-    // Each Gaussian's largest standard deviation at its last decode (the footprint).
-    vis_sigmas.resize(size_t(n));
-    for (int i = 0; i < n; ++i) {
-      const float* ls = &canon.log_scales[3 * size_t(i)];
-      vis_sigmas[size_t(i)] = std::exp(std::max(ls[0], std::max(ls[1], ls[2])));
+    // With the footprint: each Gaussian's largest standard deviation at its last decode.
+    if (vo.footprint) {
+      vis_sigmas.resize(size_t(n));
+      for (int i = 0; i < n; ++i) {
+        const float* ls = &canon.log_scales[3 * size_t(i)];
+        vis_sigmas[size_t(i)] = std::exp(std::max(ls[0], std::max(ls[1], ls[2])));
+      }
     }
-    const int m = visible_points(vis_points.data(), vis_sigmas.data(), n, fr.camera, vo, &visible);
+    const int m = visible_points(vis_points.data(), vo.footprint ? vis_sigmas.data() : nullptr, n,
+                                 fr.camera, vo, &visible);
     if (m < n) visible_sum += m, ++visible_steps;
     return m < n ? &visible : nullptr;
   }

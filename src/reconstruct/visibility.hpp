@@ -28,6 +28,10 @@ struct VisibilityOptions {
   // the ones hidden in most frames (the inner thighs) still meet the offset and Laplacian
   // regularisers and the mask loss; 0 = never, 1 = every step (visibility has no effect).
   int whole_every = 0;
+  // Widen each Gaussian's neighbourhood by its footprint (3 sigma projected, in cells): half the
+  // full-frame loss on seed 2, but it hides fewer and the steps were no faster than without
+  // visibility (docs/reconstruct.md).
+  bool footprint = false;
   float depth_margin = 0.03f;  // metres behind the surface in front before a point is hidden
   int cell = 4;                // depth-buffer cell, pixels
   int reach = 1;               // cells each side compared with
