@@ -1,6 +1,7 @@
 // Google Benchmark: the per-step pieces of the avatar fit besides the decoders and the rasterizer,
 // at the CLI defaults: the Adam step over the 512x512x32 triplane (25.2M parameters) and the
-// triplane lookup forward / backward at 165,378 points (2-level template), on 1 and 2 threads.
+// triplane lookup forward / backward at 165,378 points (2-level template), and the SSIM loss with
+// its gradient at 512x768, on 1 and 2 threads.
 #include <benchmark/benchmark.h>
 #include <omp.h>
 
@@ -8,6 +9,7 @@
 #include <vector>
 
 #include "reconstruct/adam.hpp"
+#include "reconstruct/losses.hpp"
 #include "reconstruct/triplane.hpp"
 
 namespace {
@@ -79,8 +81,40 @@ void BM_TriplaneBackward(benchmark::State& st) {
   omp_set_num_threads(saved);
 }
 
+// The SSIM term of a training step at 512x768 RGB: render against frame, value and gradient.
+// Args: the share of the picture (percent of width and of height, centred) where the two images
+// differ (a person's box in a training frame is about 40-60 % of the area, or 100 when a frame's
+// background is noisy), threads.
+void BM_SsimLoss(benchmark::State& st) {
+  const int w = 512, h = 768, ch = 3;
+  const double share = double(st.range(0)) / 100.0;
+  const int bw = int(w * share), bh = int(h * share), bx = (w - bw) / 2, by = (h - bh) / 2;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  std::vector<float> x(size_t(w) * h * ch, 0.25f), y(x.size(), 0.25f), dx(x.size());
+  for (int yy = by; yy < by + bh; ++yy)
+    for (int xx = bx; xx < bx + bw; ++xx)
+      for (int k = 0; k < ch; ++k) {
+        const size_t i = (size_t(yy) * w + xx) * ch + k;
+        y[i] = U(rng);
+        x[i] = 0.8f * y[i] + 0.2f * U(rng);
+      }
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(int(st.range(1)));
+  for (auto _ : st) {
+    benchmark::DoNotOptimize(
+        ks::ssim<float>(x.data(), y.data(), w, h, ch, nullptr, -0.2f, dx.data()));
+  }
+  omp_set_num_threads(saved);
+}
+
 }  // namespace
 
+BENCHMARK(BM_SsimLoss)
+    ->ArgsProduct({{100, 70}, {1, 2}})
+    ->ArgNames({"share", "threads"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK(BM_AdamStep)
     ->ArgsProduct({{3 * 512 * 512 * 32}, {1, 2}})
     ->ArgNames({"params", "threads"})

@@ -95,6 +95,25 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   sub->add_option("--garment-fit-width", args->opt.garment.fit_width,
                   "--garment auto: widen the skirt proxy to the width the masks show (0/1)")
       ->capture_default_str();
+  sub->add_option("--visibility", args->opt.visibility.enabled,
+                  "Decode and draw only the Gaussians a training frame can see (a depth test "
+                  "against the last decode's centres), from --visibility-start on: faster "
+                  "steps, a little less full-frame PSNR")
+      ->capture_default_str();
+  sub->add_option("--visibility-start", args->opt.visibility.start,
+                  "Fraction of the iterations decoded whole first (with --visibility)")
+      ->capture_default_str();
+  sub->add_option("--visibility-whole-every", args->opt.visibility.whole_every,
+                  "With --visibility, every this many steps still decodes and draws every "
+                  "Gaussian (0 = never, 1 = always)")
+      ->capture_default_str();
+  sub->add_option("--visibility-footprint", args->opt.visibility.footprint,
+                  "With --visibility, compare each Gaussian with the cells its footprint covers "
+                  "(hides fewer)")
+      ->capture_default_str();
+  sub->add_option("--visibility-margin", args->opt.visibility.depth_margin,
+                  "Metres behind the nearest surface around it before a Gaussian is hidden")
+      ->capture_default_str();
   sub->add_option("--lr-garment-follow", args->opt.garment.lr_follow,
                   "Learning rate of the skirt's follow (logit units; 0 = fixed)")
       ->capture_default_str();
@@ -189,6 +208,11 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
     std::printf("avatar: %s (%d Gaussians)\n", a.out.c_str(), av.num_gaussians());
     std::printf("train: %d iterations in %.1f s (%.1f ms/iteration), train PSNR %.2f dB\n",
                 rep.iterations, rep.seconds, rep.ms_per_iteration, rep.final_psnr);
+    if (rep.visible_steps > 0)
+      std::printf(
+          "visibility: %d steps decoded only what their frame sees (%.0f %% of the "
+          "Gaussians on average)\n",
+          rep.visible_steps, 100.0 * rep.visible_share);
     if (!a.eval_dataset.empty()) {
       const ks::Dataset test = ks::Dataset::load(a.eval_dataset);
       const ks::EvalReport er =

@@ -1,5 +1,6 @@
 #include "reconstruct/adam.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/error.hpp"
@@ -7,13 +8,15 @@
 namespace ks {
 
 void Adam::add_group(const std::string& name, std::vector<float>* params,
-                     const std::vector<float>* grads, float lr) {
+                     const std::vector<float>* grads, float lr,
+                     const std::vector<std::pair<size_t, size_t>>* active) {
   if (has_group(name)) throw Error("Adam: a group named '" + name + "' exists already");
   AdamGroup g;
   g.name = name;
   g.params = params;
   g.grads = grads;
   g.lr = lr;
+  g.active = active;
   g.m.assign(params->size(), 0.f);
   g.v.assign(params->size(), 0.f);
   groups_.push_back(std::move(g));
@@ -38,6 +41,24 @@ float Adam::lr_scale() const {
   return float(final_fraction + (1.0 - final_fraction) * c);
 }
 
+namespace {
+
+// One Adam update of n entries. Raw non-aliasing pointers and a sqrt without errno (CMake:
+// -fno-math-errno) let the compiler vectorise the loop (bench/train_step_bench.cpp).
+void adam_update(float* __restrict pp, float* __restrict pm, float* __restrict pv,
+                 const float* __restrict pd, long n, float b1, float b2, float e, float step,
+                 float ibc2) {
+  for (long i = 0; i < n; ++i) {
+    const float m = b1 * pm[i] + (1 - b1) * pd[i];
+    const float v = b2 * pv[i] + (1 - b2) * pd[i] * pd[i];
+    pm[i] = m;
+    pv[i] = v;
+    pp[i] -= step * m / (std::sqrt(v * ibc2) + e);
+  }
+}
+
+}  // namespace
+
 void Adam::step() {
   const float scale = lr_scale();
   ++t_;
@@ -53,21 +74,23 @@ void Adam::step() {
                   std::to_string(g.m.size()) + " moments");
     const float step = float(g.lr * scale / bc1);
     const float ibc2 = float(1.0 / bc2);
-    const long n = long(p.size());
-    // Raw non-aliasing pointers and a sqrt without errno (CMake: -fno-math-errno) let the
-    // compiler vectorise the loop (bench/train_step_bench.cpp).
-    float* __restrict pp = p.data();
-    float* __restrict pm = g.m.data();
-    float* __restrict pv = g.v.data();
-    const float* __restrict pd = d.data();
-    const float b1 = beta1, b2 = beta2, e = eps;
+    if (g.active && !g.active->empty()) {
+      const auto& R = *g.active;
+      if (R.back().second > p.size())
+        throw Error("Adam::step: group '" + g.name + "' has an active range past its end");
+#pragma omp parallel for schedule(dynamic, 16)
+      for (long r = 0; r < long(R.size()); ++r) {
+        const size_t b = R[size_t(r)].first, e = R[size_t(r)].second;
+        adam_update(p.data() + b, g.m.data() + b, g.v.data() + b, d.data() + b, long(e - b), beta1,
+                    beta2, eps, step, ibc2);
+      }
+    } else {
+      const long n = long(p.size());
+      constexpr long kBlock = 1 << 14;
 #pragma omp parallel for schedule(static) if (n > 65536)
-    for (long i = 0; i < n; ++i) {
-      const float m = b1 * pm[i] + (1 - b1) * pd[i];
-      const float v = b2 * pv[i] + (1 - b2) * pd[i] * pd[i];
-      pm[i] = m;
-      pv[i] = v;
-      pp[i] -= step * m / (std::sqrt(v * ibc2) + e);
+      for (long b = 0; b < n; b += kBlock)
+        adam_update(p.data() + b, g.m.data() + b, g.v.data() + b, d.data() + b,
+                    std::min(kBlock, n - b), beta1, beta2, eps, step, ibc2);
     }
   }
 }

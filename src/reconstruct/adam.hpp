@@ -6,6 +6,7 @@
 // entries that survive and starts new entries at zero (as gsplat's strategy ops do).
 #include <Eigen/SparseCore>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace ks {
@@ -16,6 +17,11 @@ struct AdamGroup {
   const std::vector<float>* grads = nullptr;  // not owned; the same size as params at step()
   float lr = 1e-3f;
   std::vector<float> m, v;
+  // Not owned; null or empty: every entry steps. Otherwise only the entries in these ranges
+  // [begin, end) step: the owner promises that every other entry has had a zero gradient at
+  // every step so far (its moments are zero), so Adam would leave it unchanged anyway (the
+  // triplane: texels no anchor's lookup reads).
+  const std::vector<std::pair<size_t, size_t>>* active = nullptr;
 };
 
 class Adam {
@@ -26,7 +32,8 @@ class Adam {
 
   // Adds a group (names are unique; throws ks::Error for a repeated one).
   void add_group(const std::string& name, std::vector<float>* params,
-                 const std::vector<float>* grads, float lr);
+                 const std::vector<float>* grads, float lr,
+                 const std::vector<std::pair<size_t, size_t>>* active = nullptr);
   // One step of every group with its gradient buffer.
   void step();
   float lr_scale() const;  // the cosine factor at the current step

@@ -1,5 +1,8 @@
 #include "reconstruct/decoder.hpp"
 
+#include <algorithm>
+
+#include "core/error.hpp"
 #include "mesh/trimesh.hpp"
 
 namespace ks {
@@ -26,12 +29,18 @@ void Decoder::init(const DecoderOptions& o, uint64_t seed, const Eigen::MatrixXd
   geo_.pack(geo_params_);
   app_.pack(app_params_);
   dplanes_.assign(tp_.size(), 0.f);
+  touched_.assign(tp_.size() / size_t(tp_.channels), 0);
+  touched_ranges_.clear();
+  last_ = Gaussians{};
+  last_offsets_.clear();
+  subset_.clear();
+  noted_xs_.clear(), noted_ys_.clear(), noted_zs_.clear();
   geo_grad_.assign(geo_params_.size(), 0.f);
   app_grad_.assign(app_params_.size(), 0.f);
 }
 
 void Decoder::add_parameters(Adam& adam, const OptimizerOptions& lr) {
-  adam.add_group("triplane", &tp_.planes, &dplanes_, lr.lr_triplane);
+  adam.add_group("triplane", &tp_.planes, &dplanes_, lr.lr_triplane, &touched_ranges_);
   adam.add_group("geometry_mlp", &geo_params_, &geo_grad_, lr.lr_mlp);
   adam.add_group("appearance_mlp", &app_params_, &app_grad_, lr.lr_mlp);
 }
@@ -39,41 +48,73 @@ void Decoder::add_parameters(Adam& adam, const OptimizerOptions& lr) {
 void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& xs,
                      const std::vector<float>& ys, const std::vector<float>& zs,
                      const std::vector<float>& log_scale_bias, Gaussians& g,
-                     std::vector<float>& offsets) {
+                     std::vector<float>& offsets, const std::vector<int>* subset) {
   geo_.unpack(geo_params_);
   app_.unpack(app_params_);
   const int n = int(anchors.rows());
   const int F = tp_.feature_dim();
-  feats_.resize(size_t(n) * F);
-  triplane_forward(tp_, xs.data(), ys.data(), zs.data(), n, feats_.data());
-  Eigen::Map<const Mlp::Mat> X(feats_.data(), F, n);
+  if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_) {
+    // New lookup points (the first decode, or density control changed the anchors): the texels
+    // they read join the touched set (which never shrinks: a texel left behind keeps its
+    // moments, and Adam keeps moving it as before).
+    triplane_mark_texels(tp_, xs.data(), ys.data(), zs.data(), n, &touched_);
+    touched_ranges_ = texel_ranges(touched_, tp_.channels);
+    noted_xs_ = xs, noted_ys_ = ys, noted_zs_ = zs;
+  }
+  if (subset && last_.size() != size_t(n))
+    throw Error("Decoder::decode: a subset needs a whole decode of the same points before it");
+  subset_.clear();
+  if (subset) subset_ = *subset;
+  const int m = subset ? int(subset->size()) : n;
+  const float *px = xs.data(), *py = ys.data(), *pz = zs.data();
+  if (subset) {
+    sub_xs_.resize(size_t(m)), sub_ys_.resize(size_t(m)), sub_zs_.resize(size_t(m));
+    for (int j = 0; j < m; ++j) {
+      const int i = subset_[size_t(j)];
+      if (i < 0 || i >= n) throw Error("Decoder::decode: subset index out of range");
+      sub_xs_[size_t(j)] = xs[size_t(i)], sub_ys_[size_t(j)] = ys[size_t(i)];
+      sub_zs_[size_t(j)] = zs[size_t(i)];
+    }
+    px = sub_xs_.data(), py = sub_ys_.data(), pz = sub_zs_.data();
+  }
+  feats_.resize(size_t(m) * F);
+  triplane_forward(tp_, px, py, pz, m, feats_.data());
+  Eigen::Map<const Mlp::Mat> X(feats_.data(), F, m);
   mlp_forward(geo_, X, geo_cache_, Yg_);
   mlp_forward(app_, X, app_cache_, Ya_);
-  g.sh_degree = 0;
-  g.resize(n);
-  offsets.resize(3 * size_t(n));
-  tanh_off_.resize(3 * size_t(n));
-  scale_ratio_.resize(3 * size_t(n));
+  // The outputs go to the last decode's Gaussians (a subset replaces only its own), which are
+  // then copied out, so that what the caller's components add to `g` never accumulates.
+  last_.sh_degree = 0;
+  last_.resize(n);
+  last_offsets_.resize(3 * size_t(n));
+  tanh_off_.resize(3 * size_t(m));
+  scale_ratio_.resize(3 * size_t(m));
   const int sdim = sdim_;
   const float max_offset = opt_.max_offset;
+  Gaussians& o = last_;
+  float* off = last_offsets_.data();
+  const int* sub = subset ? subset_.data() : nullptr;
 #pragma omp parallel for schedule(static)
-  for (int i = 0; i < n; ++i) {
-    const float* y = Yg_.data() + size_t(i) * geo_out_;
+  for (int j = 0; j < m; ++j) {
+    const size_t i = size_t(sub ? sub[j] : j);
+    const float* y = Yg_.data() + size_t(j) * geo_out_;
     for (int k = 0; k < 3; ++k) {
       const float t = std::tanh(y[k]);
-      tanh_off_[3 * size_t(i) + k] = t;
-      offsets[3 * size_t(i) + k] = max_offset * t;
-      g.means[3 * size_t(i) + k] = float(anchors(i, k)) + max_offset * t;
-      const float ls = base_log_scale_ + y[3 + (sdim == 1 ? 0 : k)] + log_scale_bias[size_t(i)];
-      g.log_scales[3 * size_t(i) + k] =
-          filtered_log_scale(ls, filter_var_, &scale_ratio_[3 * size_t(i) + k]);
+      tanh_off_[3 * size_t(j) + k] = t;
+      off[3 * i + k] = max_offset * t;
+      o.means[3 * i + k] = float(anchors(long(i), k)) + max_offset * t;
+      const float ls = base_log_scale_ + y[3 + (sdim == 1 ? 0 : k)] + log_scale_bias[i];
+      o.log_scales[3 * i + k] =
+          filtered_log_scale(ls, filter_var_, &scale_ratio_[3 * size_t(j) + k]);
     }
-    g.quats[4 * size_t(i)] = 1.f + y[3 + sdim];
-    for (int k = 1; k < 4; ++k) g.quats[4 * size_t(i) + k] = y[3 + sdim + k];
-    g.opacity_logits[i] = init_opacity_logit_ + y[7 + sdim];
-    const float* a = Ya_.data() + size_t(i) * 3;
-    for (int k = 0; k < 3; ++k) g.sh[3 * size_t(i) + k] = sh_init_[k] + a[k];
+    o.quats[4 * i] = 1.f + y[3 + sdim];
+    for (int k = 1; k < 4; ++k) o.quats[4 * i + k] = y[3 + sdim + k];
+    o.opacity_logits[i] = init_opacity_logit_ + y[7 + sdim];
+    const float* a = Ya_.data() + size_t(j) * 3;
+    for (int k = 0; k < 3; ++k) o.sh[3 * i + k] = sh_init_[k] + a[k];
   }
+  g = last_;
+  offsets = last_offsets_;
 }
 
 void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& ys,
@@ -81,36 +122,45 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
                        const std::vector<float>& doff, const std::vector<float>& dls,
                        const std::vector<float>& dquats, const std::vector<float>& dopacity,
                        const std::vector<float>& dsh) {
-  const int n = int(tanh_off_.size() / 3);
+  // The last decode's points: all of them, or its subset (whose gradients are gathered).
+  const int m = int(tanh_off_.size() / 3);
+  const int* sub = subset_.empty() ? nullptr : subset_.data();
   const int sdim = sdim_;
   const float max_offset = opt_.max_offset;
-  dYg_.resize(geo_out_, n);
-  dYa_.resize(3, n);
+  dYg_.resize(geo_out_, m);
+  dYa_.resize(3, m);
 #pragma omp parallel for schedule(static)
-  for (int i = 0; i < n; ++i) {
-    float* y = dYg_.data() + size_t(i) * geo_out_;
+  for (int j = 0; j < m; ++j) {
+    const size_t i = size_t(sub ? sub[j] : j);
+    float* y = dYg_.data() + size_t(j) * geo_out_;
+    const float* sr = &scale_ratio_[3 * size_t(j)];
     for (int k = 0; k < 3; ++k) {
-      const float t = tanh_off_[3 * size_t(i) + k];
-      y[k] = (dmeans[3 * size_t(i) + k] + doff[3 * size_t(i) + k]) * max_offset * (1.f - t * t);
+      const float t = tanh_off_[3 * size_t(j) + k];
+      y[k] = (dmeans[3 * i + k] + doff[3 * i + k]) * max_offset * (1.f - t * t);
     }
     if (sdim == 1)
-      y[3] = dls[3 * size_t(i)] * scale_ratio_[3 * size_t(i)] +
-             dls[3 * size_t(i) + 1] * scale_ratio_[3 * size_t(i) + 1] +
-             dls[3 * size_t(i) + 2] * scale_ratio_[3 * size_t(i) + 2];
+      y[3] = dls[3 * i] * sr[0] + dls[3 * i + 1] * sr[1] + dls[3 * i + 2] * sr[2];
     else
-      for (int k = 0; k < 3; ++k)
-        y[3 + k] = dls[3 * size_t(i) + k] * scale_ratio_[3 * size_t(i) + k];
-    for (int k = 0; k < 4; ++k) y[3 + sdim + k] = dquats[4 * size_t(i) + k];
-    y[7 + sdim] = dopacity[size_t(i)];
-    for (int k = 0; k < 3; ++k) dYa_(k, i) = dsh[3 * size_t(i) + k];
+      for (int k = 0; k < 3; ++k) y[3 + k] = dls[3 * i + k] * sr[k];
+    for (int k = 0; k < 4; ++k) y[3 + sdim + k] = dquats[4 * i + k];
+    y[7 + sdim] = dopacity[i];
+    for (int k = 0; k < 3; ++k) dYa_(k, j) = dsh[3 * i + k];
   }
   ggeo_.zero_like(geo_);
   gapp_.zero_like(app_);
   mlp_backward(geo_, geo_cache_, dYg_, ggeo_, &dXg_);
   mlp_backward(app_, app_cache_, dYa_, gapp_, &dXa_);
   dXg_ += dXa_;
-  dplanes_.assign(tp_.size(), 0.f);
-  triplane_backward(tp_, xs.data(), ys.data(), zs.data(), n, dXg_.data(), dplanes_.data());
+  // Only texels of the touched set are ever written (the points are the last decode's).
+  if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_)
+    throw Error("Decoder::backward: the points differ from the last decode's");
+  for (const auto& [b, e] : touched_ranges_)
+    std::fill(dplanes_.begin() + long(b), dplanes_.begin() + long(e), 0.f);
+  if (sub)
+    triplane_backward(tp_, sub_xs_.data(), sub_ys_.data(), sub_zs_.data(), m, dXg_.data(),
+                      dplanes_.data());
+  else
+    triplane_backward(tp_, xs.data(), ys.data(), zs.data(), m, dXg_.data(), dplanes_.data());
   ggeo_.pack(geo_grad_);
   gapp_.pack(app_grad_);
 }

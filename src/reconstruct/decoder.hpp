@@ -44,12 +44,17 @@ class Decoder {
 
   // The canonical Gaussians (SH degree 0) at the anchors (N x 3 rest positions, also given as
   // float arrays xs, ys, zs) with their per-vertex log-scale bias; offsets: 3N anchor offsets.
+  // With `subset` (increasing indices), only those Gaussians are decoded; the others keep their
+  // values from the decodes before (g and offsets are the whole set either way). Throws
+  // ks::Error unless the decode before had the same number of points.
   void decode(const Eigen::MatrixXd& anchors, const std::vector<float>& xs,
               const std::vector<float>& ys, const std::vector<float>& zs,
-              const std::vector<float>& log_scale_bias, Gaussians& g, std::vector<float>& offsets);
+              const std::vector<float>& log_scale_bias, Gaussians& g, std::vector<float>& offsets,
+              const std::vector<int>* subset = nullptr);
   // From the gradients of the decoded Gaussians (dmeans 3N, dlog_scales 3N, dquats 4N,
   // dopacity N, dsh 3N) and of the offsets (doffsets 3N, the offset regularisers) to the
-  // parameter groups' gradients. Uses the last decode's state.
+  // parameter groups' gradients. Uses the last decode's state (with a subset, only its
+  // Gaussians' gradients are read).
   void backward(const std::vector<float>& xs, const std::vector<float>& ys,
                 const std::vector<float>& zs, const std::vector<float>& dmeans,
                 const std::vector<float>& doffsets, const std::vector<float>& dlog_scales,
@@ -73,6 +78,18 @@ class Decoder {
   float base_log_scale_ = 0, init_opacity_logit_ = 0;
   float filter_var_ = 0;
   float sh_init_[3] = {0, 0, 0};
+  // The texels any lookup so far has read (only those ever get a gradient), as ranges of
+  // entries: Adam steps only these, and backward zeroes only these of dplanes_. The points they
+  // were last updated for.
+  std::vector<uint8_t> touched_;
+  std::vector<std::pair<size_t, size_t>> touched_ranges_;
+  std::vector<float> noted_xs_, noted_ys_, noted_zs_;
+  // The last decode's Gaussians and offsets (all points), its subset (empty: all) and that
+  // subset's lookup points.
+  Gaussians last_;
+  std::vector<float> last_offsets_;
+  std::vector<int> subset_;
+  std::vector<float> sub_xs_, sub_ys_, sub_zs_;
   int sdim_ = 1, geo_out_ = 9;
 };
 

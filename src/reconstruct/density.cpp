@@ -20,6 +20,10 @@ class ControlBase : public DensityControl {
   }
   DensityStats stats;
 
+  bool acts_at(int iteration, int total_iterations) const override {
+    return due(iteration, total_iterations);
+  }
+
   void step(int iteration, TrainerState& state) override {
     if (!due(iteration, state.total_iterations)) return;
     if (state.num_vertices() == 0) return;
@@ -133,6 +137,7 @@ class ControlBase : public DensityControl {
 class OffControl : public ControlBase {
  public:
   using ControlBase::ControlBase;
+  bool acts_at(int, int) const override { return false; }
   void step(int, TrainerState&) override {}
 
  protected:

@@ -68,6 +68,9 @@ class DensityControl {
   // Called by the trainer after every optimisation step (after the statistics of this iteration
   // were accumulated). The implementation decides itself when to act (interval, start, stop).
   virtual void step(int iteration, TrainerState& state) = 0;
+  // Whether step() may act after this iteration (and so read TrainerState::canonical, which the
+  // trainer then fills; copying every iteration's decode would cost a step about as much as SSIM).
+  virtual bool acts_at(int /*iteration*/, int /*total_iterations*/) const { return true; }
 };
 
 }  // namespace ks

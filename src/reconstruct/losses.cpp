@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <type_traits>
 #include <vector>
 
 #include "core/error.hpp"
@@ -27,89 +28,213 @@ std::array<T, kWin> gaussian_window() {
   return g;
 }
 
+// One row of each pass of the separable blur below, tap-major (for each tap, a contiguous update of
+// the row) so that they vectorise; each output sums its taps in index order, as multiplies and
+// adds (no fused multiply-add), so every instruction set gives the same bits.
+template <typename T>
+[[gnu::always_inline]] inline void blur_row_h(const T* r, T* o, int w, const T* g) {
+  for (int x = 0; x < w; ++x) o[x] = 0;
+  for (int k = 0; k < kWin; ++k) {
+    // Output x reads r[x + k - kHalf]: valid for x in [kHalf - k, w + kHalf - k).
+    const int xa = std::max(0, kHalf - k), xb = std::min(w, w + kHalf - k);
+    const T gk = g[k];
+    const T* rk = r + (k - kHalf);
+    for (int x = xa; x < xb; ++x) o[x] += gk * rk[x];
+  }
+}
+
+template <typename T>
+[[gnu::always_inline]] inline void blur_row_v(const T* tmp, T* o, int w, int h, int y, const T* g) {
+  const int k0 = std::max(0, kHalf - y), k1 = std::min(kWin, h - y + kHalf);
+  for (int x = 0; x < w; ++x) o[x] = 0;
+  for (int k = k0; k < k1; ++k) {
+    const T gk = g[k];
+    const T* r = tmp + size_t(y + k - kHalf) * w;
+    for (int x = 0; x < w; ++x) o[x] += gk * r[x];
+  }
+}
+
+// The float rows again, compiled for AVX2 (chosen at run time when the CPU has it).
+__attribute__((target("avx2"))) void blur_row_h_avx2(const float* r, float* o, int w,
+                                                     const float* g) {
+  blur_row_h(r, o, w, g);
+}
+__attribute__((target("avx2"))) void blur_row_v_avx2(const float* tmp, float* o, int w, int h,
+                                                     int y, const float* g) {
+  blur_row_v(tmp, o, w, h, y, g);
+}
+
+template <typename T>
+bool blur_use_avx2() {
+  if constexpr (std::is_same_v<T, float>) {
+    static const bool ok = __builtin_cpu_supports("avx2");
+    return ok;
+  }
+  return false;
+}
+
 // Separable Gaussian blur, zero padding, on a single-channel planar image (w x h). The operator
 // is symmetric (the transpose of zero-padded correlation with a symmetric kernel is itself).
 template <typename T>
 void blur(const T* in, T* out, T* tmp, int w, int h) {
   static const std::array<T, kWin> g = gaussian_window<T>();
+  const bool avx2 = blur_use_avx2<T>();
 #pragma omp parallel for schedule(static) if (size_t(w) * h > 16384)
   for (int y = 0; y < h; ++y) {
     const T* r = in + size_t(y) * w;
     T* o = tmp + size_t(y) * w;
-    for (int x = 0; x < w; ++x) {
-      T s = 0;
-      const int k0 = std::max(0, kHalf - x), k1 = std::min(kWin, w - x + kHalf);
-      for (int k = k0; k < k1; ++k) s += g[k] * r[x + k - kHalf];
-      o[x] = s;
-    }
+    if constexpr (std::is_same_v<T, float>)
+      if (avx2) {
+        blur_row_h_avx2(r, o, w, g.data());
+        continue;
+      }
+    blur_row_h(r, o, w, g.data());
   }
 #pragma omp parallel for schedule(static) if (size_t(w) * h > 16384)
   for (int y = 0; y < h; ++y) {
     T* o = out + size_t(y) * w;
-    const int k0 = std::max(0, kHalf - y), k1 = std::min(kWin, h - y + kHalf);
-    for (int x = 0; x < w; ++x) o[x] = 0;
-    for (int k = k0; k < k1; ++k) {
-      const T gk = g[k];
-      const T* r = tmp + size_t(y + k - kHalf) * w;
-      for (int x = 0; x < w; ++x) o[x] += gk * r[x];
-    }
+    if constexpr (std::is_same_v<T, float>)
+      if (avx2) {
+        blur_row_v_avx2(tmp, o, w, h, y, g.data());
+        continue;
+      }
+    blur_row_v(tmp, o, w, h, y, g.data());
   }
 }
+
+// The smallest rectangle holding every pixel where x and y differ in any channel, grown by
+// `margin` and clipped to the image; false when the images are equal.
+template <typename T>
+bool differing_rect(const T* x, const T* y, int w, int h, int ch, int margin, int* rx0, int* rx1,
+                    int* ry0, int* ry1) {
+  int x0 = w, x1 = -1, y0 = h, y1 = -1;
+  for (int yy = 0; yy < h; ++yy) {
+    const T* a = x + size_t(yy) * w * ch;
+    const T* b = y + size_t(yy) * w * ch;
+    int first = -1, last = -1;
+    for (int i = 0; i < w * ch; ++i)
+      if (a[i] != b[i]) {
+        first = i;
+        break;
+      }
+    if (first < 0) continue;
+    for (int i = w * ch - 1; i >= first; --i)
+      if (a[i] != b[i]) {
+        last = i;
+        break;
+      }
+    x0 = std::min(x0, first / ch);
+    x1 = std::max(x1, last / ch);
+    y0 = std::min(y0, yy);
+    y1 = yy;
+  }
+  if (y1 < 0) return false;
+  *rx0 = std::max(0, x0 - margin);
+  *rx1 = std::min(w - 1, x1 + margin);
+  *ry0 = std::max(0, y0 - margin);
+  *ry1 = std::min(h - 1, y1 + margin);
+  return true;
+}
+
+// Per-thread scratch for ssim (kept between calls: no allocation or page faults per step).
+template <typename T>
+struct SsimScratch {
+  std::vector<T> X, Y, XX, YY, XY, mx, my, sxx, syy, sxy, tmp, a, b, c;
+  void resize(size_t n) {
+    for (auto* v : {&X, &Y, &XX, &YY, &XY, &mx, &my, &sxx, &syy, &sxy, &tmp, &a, &b, &c})
+      v->resize(n);
+  }
+};
 
 constexpr double kC1 = 0.01 * 0.01;
 constexpr double kC2 = 0.03 * 0.03;
 
 }  // namespace
 
+// Where x and y agree over a whole window, SSIM is exactly 1 there and its gradient vanishes (x = y
+// is its maximum). So only the rectangle of differing pixels grown by two half-windows is computed
+// (one half-window for the values, one more for the gradient's reach); its zero padding at an
+// inner edge pads x and y alike, which keeps every window there equal. The pixels outside count 1.
 template <typename T>
 T ssim(const T* x, const T* y, int w, int h, int ch, std::vector<T>* map, T grad_scale, T* dx) {
   const size_t P = size_t(w) * h;
-  std::vector<T> X(P), Y(P), XX(P), YY(P), XY(P), mx(P), my(P), sxx(P), syy(P), sxy(P), tmp(P);
-  std::vector<T> a(P), b(P), c(P);
-  if (map) map->assign(P * ch, T(0));
-  double total = 0;
+  if (map) map->assign(P * ch, T(1));
+  int rx0, rx1, ry0, ry1;
+  if (!differing_rect(x, y, w, h, ch, 2 * kHalf, &rx0, &rx1, &ry0, &ry1)) return T(1);
+  const int cw = rx1 - rx0 + 1, chh = ry1 - ry0 + 1;
+  const size_t Q = size_t(cw) * chh;
+  thread_local SsimScratch<T> S;
+  S.resize(Q);
+  T *X = S.X.data(), *Y = S.Y.data(), *XX = S.XX.data(), *YY = S.YY.data(), *XY = S.XY.data();
+  T *mx = S.mx.data(), *my = S.my.data(), *sxx = S.sxx.data(), *syy = S.syy.data();
+  T *sxy = S.sxy.data(), *tmp = S.tmp.data(), *a = S.a.data(), *b = S.b.data(), *c = S.c.data();
+  // Image index of the crop's pixel q.
+  auto pix = [&](size_t q) { return (size_t(ry0) + q / cw) * w + rx0 + q % cw; };
+  double total = double(P - Q) * ch;
   const T C1 = T(kC1), C2 = T(kC2);
   const double norm = 1.0 / double(P * ch);
+  const bool par = Q > 16384;
+  std::vector<double> row_sum(static_cast<size_t>(chh));
   for (int k = 0; k < ch; ++k) {
-    for (size_t p = 0; p < P; ++p) {
-      X[p] = x[p * ch + k];
-      Y[p] = y[p * ch + k];
-      XX[p] = X[p] * X[p];
-      YY[p] = Y[p] * Y[p];
-      XY[p] = X[p] * Y[p];
-    }
-    blur(X.data(), mx.data(), tmp.data(), w, h);
-    blur(Y.data(), my.data(), tmp.data(), w, h);
-    blur(XX.data(), sxx.data(), tmp.data(), w, h);
-    blur(YY.data(), syy.data(), tmp.data(), w, h);
-    blur(XY.data(), sxy.data(), tmp.data(), w, h);
-    double sum = 0;
-    for (size_t p = 0; p < P; ++p) {
-      const T mu1 = mx[p], mu2 = my[p];
-      const T s11 = sxx[p] - mu1 * mu1, s22 = syy[p] - mu2 * mu2, s12 = sxy[p] - mu1 * mu2;
-      const T A1 = 2 * mu1 * mu2 + C1, A2 = 2 * s12 + C2;
-      const T B1 = mu1 * mu1 + mu2 * mu2 + C1, B2 = s11 + s22 + C2;
-      const T s = (A1 * A2) / (B1 * B2);
-      sum += double(s);
-      if (map) (*map)[p * ch + k] = s;
-      if (grad_scale != T(0)) {
-        // d s / d mu1, d s / d s11 (sigma_x^2), d s / d s12; scaled by grad_scale / count.
-        const T gs = T(double(grad_scale) * norm);
-        const T d_mu1 = (2 * mu2 * A2) / (B1 * B2) - s * (2 * mu1) / B1;
-        const T d_s11 = -s / B2;
-        const T d_s12 = 2 * A1 / (B1 * B2);
-        // s11 = E[x^2] - mu1^2, s12 = E[xy] - mu1 mu2: back to the blurred maps.
-        a[p] = gs * (d_mu1 - 2 * mu1 * d_s11 - mu2 * d_s12);  // d/d mx
-        b[p] = gs * d_s11;                                    // d/d E[x^2]
-        c[p] = gs * d_s12;                                    // d/d E[xy]
+#pragma omp parallel for schedule(static) if (par)
+    for (int r = 0; r < chh; ++r) {
+      const T* xr = x + ((size_t(ry0) + r) * w + rx0) * ch + k;
+      const T* yr = y + ((size_t(ry0) + r) * w + rx0) * ch + k;
+      const size_t q0 = size_t(r) * cw;
+      for (int i = 0; i < cw; ++i) {
+        const T xv = xr[size_t(i) * ch], yv = yr[size_t(i) * ch];
+        X[q0 + i] = xv;
+        Y[q0 + i] = yv;
+        XX[q0 + i] = xv * xv;
+        YY[q0 + i] = yv * yv;
+        XY[q0 + i] = xv * yv;
       }
     }
-    total += sum;
+    blur(X, mx, tmp, cw, chh);
+    blur(Y, my, tmp, cw, chh);
+    blur(XX, sxx, tmp, cw, chh);
+    blur(YY, syy, tmp, cw, chh);
+    blur(XY, sxy, tmp, cw, chh);
+    // Per row, then the rows' sums in order: the same total for any thread count.
+#pragma omp parallel for schedule(static) if (par)
+    for (int r = 0; r < chh; ++r) {
+      double sum = 0;
+      for (size_t q = size_t(r) * cw; q < size_t(r + 1) * cw; ++q) {
+        const T mu1 = mx[q], mu2 = my[q];
+        const T s11 = sxx[q] - mu1 * mu1, s22 = syy[q] - mu2 * mu2, s12 = sxy[q] - mu1 * mu2;
+        const T A1 = 2 * mu1 * mu2 + C1, A2 = 2 * s12 + C2;
+        const T B1 = mu1 * mu1 + mu2 * mu2 + C1, B2 = s11 + s22 + C2;
+        const T s = (A1 * A2) / (B1 * B2);
+        sum += double(s);
+        if (map) (*map)[pix(q) * ch + k] = s;
+        if (grad_scale != T(0)) {
+          // d s / d mu1, d s / d s11 (sigma_x^2), d s / d s12; scaled by grad_scale / count.
+          const T gs = T(double(grad_scale) * norm);
+          const T d_mu1 = (2 * mu2 * A2) / (B1 * B2) - s * (2 * mu1) / B1;
+          const T d_s11 = -s / B2;
+          const T d_s12 = 2 * A1 / (B1 * B2);
+          // s11 = E[x^2] - mu1^2, s12 = E[xy] - mu1 mu2: back to the blurred maps.
+          a[q] = gs * (d_mu1 - 2 * mu1 * d_s11 - mu2 * d_s12);  // d/d mx
+          b[q] = gs * d_s11;                                    // d/d E[x^2]
+          c[q] = gs * d_s12;                                    // d/d E[xy]
+        }
+      }
+      row_sum[size_t(r)] = sum;
+    }
+    for (double v : row_sum) total += v;
     if (grad_scale != T(0)) {
-      blur(a.data(), mx.data(), tmp.data(), w, h);
-      blur(b.data(), sxx.data(), tmp.data(), w, h);
-      blur(c.data(), sxy.data(), tmp.data(), w, h);
-      for (size_t p = 0; p < P; ++p) dx[p * ch + k] += mx[p] + 2 * X[p] * sxx[p] + Y[p] * sxy[p];
+      blur(a, mx, tmp, cw, chh);
+      blur(b, sxx, tmp, cw, chh);
+      blur(c, sxy, tmp, cw, chh);
+#pragma omp parallel for schedule(static) if (par)
+      for (int r = 0; r < chh; ++r) {
+        T* dr = dx + ((size_t(ry0) + r) * w + rx0) * ch + k;
+        const size_t q0 = size_t(r) * cw;
+        for (int i = 0; i < cw; ++i) {
+          const size_t q = q0 + i;
+          dr[size_t(i) * ch] += mx[q] + 2 * X[q] * sxx[q] + Y[q] * sxy[q];
+        }
+      }
     }
   }
   return T(total * norm);

@@ -10,6 +10,7 @@
 #include "dataset/frames.hpp"
 #include "reconstruct/garment/proxy.hpp"
 #include "reconstruct/losses.hpp"
+#include "reconstruct/visibility.hpp"
 
 namespace ks {
 
@@ -99,6 +100,7 @@ struct TrainOptions {
   VertexColorOptions vertex_color;
   LearnedSkinOptions skin;
   GarmentOptions garment;
+  VisibilityOptions visibility;       // decode and draw only what a frame can see
   DensityControl* density = nullptr;  // not owned; called after every step
   bool progress = true;
   int log_every = 0;  // > 0: print "it loss psnr" lines to stderr every this many iterations

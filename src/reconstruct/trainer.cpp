@@ -35,6 +35,13 @@ void check_options(const std::vector<LoadedFrame>& frames, const TrainOptions& o
     throw Error("reconstruct: the fine frames must be the same frames as the coarse ones");
   if (opt.subdivide < 0 || opt.subdivide > 4)
     throw Error("reconstruct: --subdivide must be in [0, 4]");
+  const VisibilityOptions& v = opt.visibility;
+  if (!(v.start >= 0.f && v.start <= 1.f))
+    throw Error("reconstruct: --visibility-start must be in [0, 1]");
+  if (!(v.depth_margin >= 0.f)) throw Error("reconstruct: --visibility-margin must be >= 0");
+  if (v.whole_every < 0) throw Error("reconstruct: --visibility-whole-every must be >= 0");
+  if (v.cell < 1 || v.reach < 0)
+    throw Error("reconstruct: the visibility cell must be >= 1 pixel and its reach >= 0");
 }
 
 // The optional features, in the order they set up: the garment extends the template, learned
@@ -88,6 +95,12 @@ struct Trainer::Impl {
   RasterResult rr;
   RasterGrads rg;
   Image dcolor, dalpha;
+  // Visibility (reconstruct/visibility.hpp): the Gaussians the frame can see, their posed
+  // centres from the last decode, and whether a whole decode of this vertex set has run.
+  std::vector<int> visible;
+  std::vector<float> vis_points, vis_sigmas;
+  bool whole_decoded = false;
+  long visible_sum = 0, visible_steps = 0;
 
   // Schedule and log.
   std::mt19937_64 rng;
@@ -232,6 +245,7 @@ struct Trainer::Impl {
   static void on_resize(void* ctx, const Stencil& S) {
     Impl* t = static_cast<Impl*>(ctx);
     t->body_stencil = Stencil(S * t->body_stencil);
+    t->whole_decoded = false;
     for (auto& c : t->components) c->remap(S, t->adam);
     t->rebuild();
   }
@@ -247,8 +261,6 @@ struct Trainer::Impl {
     ctx.pose_offsets = &pose_off;
     ctx.laplacian = opt.loss.laplacian != LaplacianMode::kNone ? &lap : nullptr;
 
-    // Decode the canonical Gaussians.
-    decoder.decode(st.anchors, xs, ys, zs, st.log_scale_bias, canon, offsets);
     // Pose: the frame's skinning transforms and the anchors' pose correctives.
     const BodyState bs = body_forward(model, fr.pose);
     ctx.body = &bs;
@@ -258,6 +270,10 @@ struct Trainer::Impl {
       for (int i = 0; i < n; ++i)
         for (int k = 0; k < 3; ++k) pose_off[3 * size_t(i) + k] = float(po(i, k));
     }
+    // Decode the canonical Gaussians: all of them, or those the frame can see.
+    const std::vector<int>* subset = select_visible(fr, bs);
+    decoder.decode(st.anchors, xs, ys, zs, st.log_scale_bias, canon, offsets, subset);
+    if (!subset) whole_decoded = true;
     for (auto& c : components) c->forward(ctx);
     // Skin (the template's weights, or a component's) and render.
     const std::vector<int>* sj = &st.skin_joints;
@@ -265,6 +281,13 @@ struct Trainer::Impl {
     for (auto& c : components)
       if (c->skinning(&sj, &sw)) break;
     lbs_forward(canon, pose_off.data(), *sj, *sw, bs.transforms, posed, &lbs_cache);
+    if (subset) {
+      // The hidden ones (not decoded this step) drop out before the rasterizer sorts.
+      std::vector<uint8_t> shown(size_t(n), 0);
+      for (int i : *subset) shown[size_t(i)] = 1;
+      for (int i = 0; i < n; ++i)
+        if (!shown[size_t(i)]) posed.opacity_logits[size_t(i)] = kCulledOpacityLogit;
+    }
     rasterize_forward(posed, fr.camera, rs, rr);
 
     // Image and mask losses.
@@ -328,6 +351,41 @@ struct Trainer::Impl {
     return L;
   }
 
+  // The Gaussians the frame can see (by their centres at the last decode, posed for it with the
+  // template's skin weights), or nullptr for all: before opt.visibility.start, and until a whole
+  // decode of the current vertex set has run.
+  const std::vector<int>* select_visible(const LoadedFrame& fr, const BodyState& bs) {
+    const VisibilityOptions& vo = opt.visibility;
+    const int n = st.num_vertices();
+    if (!vo.enabled || !whole_decoded || it < int(vo.start * float(opt.iterations)) ||
+        int(canon.size()) != n || (vo.whole_every > 0 && it % vo.whole_every == 0))
+      return nullptr;
+    const int k = int(st.skin_joints.size()) / std::max(1, n);
+    vis_points.resize(3 * size_t(n));
+#pragma omp parallel for schedule(static) if (n > 16384)
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Matrix<double, 3, 4> M = blend_skin_transform(
+          bs.transforms, &st.skin_joints[size_t(k) * i], &st.skin_weights[size_t(k) * i], k);
+      const Eigen::Vector3d x(canon.means[3 * size_t(i)] + pose_off[3 * size_t(i)],
+                              canon.means[3 * size_t(i) + 1] + pose_off[3 * size_t(i) + 1],
+                              canon.means[3 * size_t(i) + 2] + pose_off[3 * size_t(i) + 2]);
+      const Eigen::Vector3d p = M.leftCols<3>() * x + M.col(3);
+      for (int c = 0; c < 3; ++c) vis_points[3 * size_t(i) + c] = float(p(c));
+    }
+    // With the footprint: each Gaussian's largest standard deviation at its last decode.
+    if (vo.footprint) {
+      vis_sigmas.resize(size_t(n));
+      for (int i = 0; i < n; ++i) {
+        const float* ls = &canon.log_scales[3 * size_t(i)];
+        vis_sigmas[size_t(i)] = std::exp(std::max(ls[0], std::max(ls[1], ls[2])));
+      }
+    }
+    const int m = visible_points(vis_points.data(), vo.footprint ? vis_sigmas.data() : nullptr, n,
+                                 fr.camera, vo, &visible);
+    if (m < n) visible_sum += m, ++visible_steps;
+    return m < n ? &visible : nullptr;
+  }
+
   // Density-control statistics, then its hook (which may replace the vertex set).
   void density_control() {
     const int n = st.num_vertices();
@@ -340,7 +398,7 @@ struct Trainer::Impl {
     }
     if (opt.density) {
       st.iteration = it;
-      st.canonical = canon;
+      if (opt.density->acts_at(it, st.total_iterations)) st.canonical = canon;
       opt.density->step(it, st);
     }
   }
@@ -451,6 +509,8 @@ struct Trainer::Impl {
     rep.final_loss = last_loss;
     rep.final_psnr = float(psnr_ema);
     rep.num_gaussians = n;
+    rep.visible_steps = int(visible_steps);
+    if (visible_steps > 0) rep.visible_share = double(visible_sum) / double(visible_steps) / n;
     for (auto& c : components) c->bake(av, rep);
     if (report) *report = rep;
     return av;

@@ -25,6 +25,10 @@ struct TrainReport {
   float final_loss = 0;
   float final_psnr = 0;  // PSNR of the last few training iterations' renders (training frames)
   int num_gaussians = 0;
+  // Visibility (TrainOptions::visibility): the steps that decoded only what their frame sees,
+  // and the mean share of the Gaussians those decoded.
+  int visible_steps = 0;
+  double visible_share = 1;
   bool garment = false;         // the skirt proxy was added
   int garment_vertices = 0;     // its vertices (before density control)
   std::string garment_summary;  // detection / proxy line (empty with GarmentMode::kNone)

@@ -143,6 +143,37 @@ void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T
   }
 }
 
+template <typename T>
+void triplane_mark_texels(const TriplaneT<T>& tp, const T* xs, const T* ys, const T* zs, int n,
+                          std::vector<uint8_t>* texels) {
+  const size_t per_plane = size_t(tp.res) * tp.res;
+  if (texels->size() < 3 * per_plane) texels->resize(3 * per_plane, 0);
+  uint8_t* t = texels->data();
+  for (int i = 0; i < n; ++i)
+    for (int p = 0; p < 3; ++p) {
+      const Bilinear<T> b = lookup(tp, p, xs[i], ys[i], zs[i]);
+      uint8_t* base = t + p * per_plane + b.i00;
+      base[0] = base[b.du] = base[b.dv] = base[b.dv + b.du] = 1;
+    }
+}
+
+std::vector<std::pair<size_t, size_t>> texel_ranges(const std::vector<uint8_t>& texels,
+                                                    int channels) {
+  std::vector<std::pair<size_t, size_t>> out;
+  const size_t C = size_t(channels);
+  for (size_t i = 0; i < texels.size();) {
+    if (!texels[i]) {
+      ++i;
+      continue;
+    }
+    size_t j = i;
+    while (j < texels.size() && texels[j]) ++j;
+    out.emplace_back(i * C, j * C);
+    i = j;
+  }
+  return out;
+}
+
 template struct TriplaneT<float>;
 template struct TriplaneT<double>;
 template void triplane_forward(const TriplaneT<float>&, const float*, const float*, const float*,
@@ -153,5 +184,9 @@ template void triplane_backward(const TriplaneT<float>&, const float*, const flo
                                 int, const float*, float*);
 template void triplane_backward(const TriplaneT<double>&, const double*, const double*,
                                 const double*, int, const double*, double*);
+template void triplane_mark_texels(const TriplaneT<float>&, const float*, const float*,
+                                   const float*, int, std::vector<uint8_t>*);
+template void triplane_mark_texels(const TriplaneT<double>&, const double*, const double*,
+                                   const double*, int, std::vector<uint8_t>*);
 
 }  // namespace ks

@@ -6,6 +6,7 @@
 // gradients w.r.t. the planes only (anchors are fixed; positions move through decoded offsets).
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace ks {
@@ -38,6 +39,17 @@ void triplane_forward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T*
 template <typename T>
 void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T* zs, int n,
                        const T* dfeats, T* dplanes);
+
+// Marks (sets to 1) in `texels` (resized to 3 res^2 if smaller; index plane * res^2 + v * res + u)
+// every texel a lookup of the points reads: the only texels triplane_backward writes for them.
+template <typename T>
+void triplane_mark_texels(const TriplaneT<T>& tp, const T* xs, const T* ys, const T* zs, int n,
+                          std::vector<uint8_t>* texels);
+
+// The marked texels as ranges [begin, end) of entries of `planes` (channels per texel), runs of
+// neighbouring texels joined.
+std::vector<std::pair<size_t, size_t>> texel_ranges(const std::vector<uint8_t>& texels,
+                                                    int channels);
 
 using Triplane = TriplaneT<float>;
 

@@ -52,6 +52,50 @@ TEST(ReconstructGrad, TriplaneMatchesFiniteDifferences) {
 
 // The threaded backward (points binned into row stripes) equals a plain serial scatter, and is
 // bit-identical for 1 and 2 threads.
+// The marked texels hold every texel triplane_backward writes for the same points (with points
+// outside the box, clamped to its border), and their ranges cover exactly the marked texels.
+TEST(ReconstructGrad, TriplaneMarkedTexelsHoldEveryWrittenTexel) {
+  std::mt19937_64 rng(10);
+  Triplane tp;
+  const float lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
+  tp.init(20, 4, lo, hi, 3, 0.5f);
+  const int n = 60;
+  std::vector<float> xs(n), ys(n), zs(n), dfeats(size_t(n) * tp.feature_dim());
+  std::uniform_real_distribution<float> u(-1.2f, 0.3f), d(0.5f, 1.f);
+  for (int i = 0; i < n; ++i)
+    xs[size_t(i)] = u(rng), ys[size_t(i)] = u(rng), zs[size_t(i)] = u(rng);
+  for (auto& v : dfeats) v = d(rng);
+  std::vector<float> g(tp.size(), 0.f);
+  triplane_backward(tp, xs.data(), ys.data(), zs.data(), n, dfeats.data(), g.data());
+  std::vector<uint8_t> marked;
+  triplane_mark_texels(tp, xs.data(), ys.data(), zs.data(), n, &marked);
+  ASSERT_EQ(marked.size(), tp.size() / 4);
+  size_t n_marked = 0, n_written = 0;
+  for (size_t t = 0; t < marked.size(); ++t) {
+    bool written = false;
+    for (int c = 0; c < 4; ++c) written |= g[t * 4 + size_t(c)] != 0.f;
+    if (written) {
+      EXPECT_EQ(marked[t], 1) << t;
+    }
+    n_marked += marked[t];
+    n_written += written;
+  }
+  EXPECT_GT(n_written, 0u);
+  EXPECT_LT(n_marked, marked.size());  // the points fill only part of the box
+  const auto ranges = texel_ranges(marked, 4);
+  std::vector<uint8_t> covered(marked.size(), 0);
+  size_t prev_end = 0;
+  for (const auto& [b, e] : ranges) {
+    EXPECT_LT(b, e);
+    EXPECT_TRUE(b == 0 || b > prev_end);  // disjoint, sorted, neighbours joined
+    EXPECT_EQ(b % 4, 0u);
+    EXPECT_EQ(e % 4, 0u);
+    for (size_t t = b / 4; t < e / 4; ++t) covered[t] = 1;
+    prev_end = e;
+  }
+  EXPECT_EQ(covered, marked);
+}
+
 TEST(ReconstructGrad, TriplaneBackwardIsThreadIndependent) {
   std::mt19937_64 rng(9);
   Triplane tp;
@@ -136,6 +180,70 @@ TEST(ReconstructGrad, SsimMatchesFiniteDifferences) {
       },
       x, g, 1e-6, 1e-5, 300);
   EXPECT_NEAR(ssim<double>(y.data(), y.data(), w, h, c, nullptr, 0.0, nullptr), 1.0, 1e-12);
+}
+
+// SSIM is computed only over the rectangle where the images differ, grown by two half-windows.
+// Images that agree except in a small block: the value, map and gradient must match the whole
+// picture's (forced by a 1e-9 difference in two corners), and the gradient the finite
+// differences of the library's own forward, inside the rectangle, at its edge and outside it.
+TEST(ReconstructGrad, SsimOverTheDifferingRectangle) {
+  std::mt19937_64 rng(6);
+  const int w = 40, h = 36, c = 3;
+  auto y = randv(size_t(w) * h * c, rng, 0, 1);
+  auto x = y;
+  for (int yy = 14; yy <= 20; ++yy)
+    for (int xx = 15; xx <= 22; ++xx)
+      for (int k = 0; k < c; ++k)
+        x[(size_t(yy) * w + xx) * c + k] = 0.5 * y[(size_t(yy) * w + xx) * c + k] + 0.3;
+  std::vector<double> g(x.size(), 0.0), map;
+  const double v = ssim<double>(x.data(), y.data(), w, h, c, &map, 1.0, g.data());
+  EXPECT_LT(v, 1.0);
+  auto xf = x;
+  xf[0] += 1e-9;
+  xf.back() += 1e-9;
+  std::vector<double> gf(x.size(), 0.0), mapf;
+  const double vf = ssim<double>(xf.data(), y.data(), w, h, c, &mapf, 1.0, gf.data());
+  EXPECT_NEAR(v, vf, 1e-12);
+  double sum = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    EXPECT_NEAR(map[i], mapf[i], 1e-9) << i;
+    EXPECT_NEAR(g[i], gf[i], 1e-9) << i;
+    sum += map[i];
+  }
+  EXPECT_NEAR(sum / double(map.size()), v, 1e-12);
+  // Outside the rectangle grown by one half-window the map is exactly 1.
+  EXPECT_EQ(map[(size_t(2) * w + 2) * c], 1.0);
+  EXPECT_LT(map[(size_t(17) * w + 18) * c], 1.0);
+  expect_grad(
+      [&](const std::vector<double>& xv) {
+        return ssim<double>(xv.data(), y.data(), w, h, c, nullptr, 0.0, nullptr);
+      },
+      x, g, 1e-6, 1e-5, 400);
+}
+
+// The float path (AVX2 rows where the CPU has them, parallel rows) gives the same bits on 1 and 2
+// threads.
+TEST(ReconstructGrad, SsimFloatSameOnOneAndTwoThreads) {
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  const int w = 160, h = 240, c = 3;
+  std::vector<float> x(size_t(w) * h * c, 0.2f), y = x;
+  for (int yy = 30; yy < 200; ++yy)
+    for (int xx = 40; xx < 120; ++xx)
+      for (int k = 0; k < c; ++k) {
+        const size_t i = (size_t(yy) * w + xx) * c + k;
+        y[i] = U(rng);
+        x[i] = 0.7f * y[i] + 0.3f * U(rng);
+      }
+  const int saved = omp_get_max_threads();
+  std::vector<float> g1(x.size(), 0.f), g2(x.size(), 0.f);
+  omp_set_num_threads(1);
+  const float v1 = ssim<float>(x.data(), y.data(), w, h, c, nullptr, -0.2f, g1.data());
+  omp_set_num_threads(2);
+  const float v2 = ssim<float>(x.data(), y.data(), w, h, c, nullptr, -0.2f, g2.data());
+  omp_set_num_threads(saved);
+  EXPECT_EQ(v1, v2);
+  EXPECT_EQ(g1, g2);
 }
 
 TEST(ReconstructGrad, L1MatchesFiniteDifferences) {

@@ -58,6 +58,8 @@ TEST(Trainer, FitsTinyRenderedPerson) {
   ds.betas = Eigen::VectorXd::Zero(model.num_betas);
   TrainOptions opt = test::tiny_train_options(32, 8, 32);
   opt.iterations = 60;
+  opt.visibility.enabled = true;
+  opt.visibility.cell = 1;  // 40 x 56 frames: pixel cells, so that the back is hidden
   // The "truth": a short fit's own structure with colours painted by height.
   Avatar truth = test::one_step_avatar(model, ds, opt);
   test::paint_by_height(truth, 4.f, -0.8f, 3.f);
@@ -72,6 +74,10 @@ TEST(Trainer, FitsTinyRenderedPerson) {
   // Render both from frame 1 and compare to the target.
   const double p0 = frame_psnr(a0, ds, frames[1]), p1 = frame_psnr(a1, ds, frames[1]);
   EXPECT_GT(p1, p0 + 3.0) << "start " << p0 << " dB, after " << p1 << " dB";
+  // From iteration 5 on (visibility's start, 0.1) the steps decoded only what their frame sees.
+  EXPECT_EQ(rep.visible_steps, 45);
+  EXPECT_LT(rep.visible_share, 0.9);
+  EXPECT_GT(rep.visible_share, 0.3);
   // Deterministic under the seed up to the summation order of the rasterizer's threaded
   // backward pass (bit-identical with one thread).
   Avatar a2 = train_avatar(model, ds, frames, opt);
@@ -194,6 +200,15 @@ TEST(Trainer, RejectsBadOptions) {
   opt.progress = false;
   opt.fine_frames = &none;
   opt.fine_from = 0.5f;
+  EXPECT_THROW(train_avatar(model, ds, one, opt), Error);
+  opt.fine_frames = nullptr;
+  opt.visibility.start = 1.5f;
+  EXPECT_THROW(train_avatar(model, ds, one, opt), Error);
+  opt.visibility.start = 0.1f;
+  opt.visibility.depth_margin = -0.01f;
+  EXPECT_THROW(train_avatar(model, ds, one, opt), Error);
+  opt.visibility.depth_margin = 0.03f;
+  opt.visibility.whole_every = -1;
   EXPECT_THROW(train_avatar(model, ds, one, opt), Error);
 }
 
