@@ -95,10 +95,11 @@ struct Trainer::Impl {
   RasterResult rr;
   RasterGrads rg;
   Image dcolor, dalpha;
-  // Visibility (reconstruct/visibility.hpp): the Gaussians the frame can see, their posed
-  // centres from the last decode, and whether a whole decode of this vertex set has run.
+  // Visibility (reconstruct/visibility.hpp): the Gaussians the frame can see, the last decode
+  // posed for the frame, and whether a whole decode of this vertex set has run.
   std::vector<int> visible;
-  std::vector<float> vis_points, vis_sigmas;
+  Gaussians vis_posed;
+  std::vector<float> vis_sigmas;
   bool whole_decoded = false;
   long visible_sum = 0, visible_steps = 0;
 
@@ -283,10 +284,12 @@ struct Trainer::Impl {
     lbs_forward(canon, pose_off.data(), *sj, *sw, bs.transforms, posed, &lbs_cache);
     if (subset) {
       // The hidden ones (not decoded this step) drop out before the rasterizer sorts.
-      std::vector<uint8_t> shown(size_t(n), 0);
-      for (int i : *subset) shown[size_t(i)] = 1;
+      size_t j = 0;  // the subset is increasing
       for (int i = 0; i < n; ++i)
-        if (!shown[size_t(i)]) posed.opacity_logits[size_t(i)] = kCulledOpacityLogit;
+        if (j < subset->size() && (*subset)[j] == i)
+          ++j;
+        else
+          posed.opacity_logits[size_t(i)] = kCulledOpacityLogit;
     }
     rasterize_forward(posed, fr.camera, rs, rr);
 
@@ -360,18 +363,8 @@ struct Trainer::Impl {
     if (!vo.enabled || !whole_decoded || it < int(vo.start * float(opt.iterations)) ||
         int(canon.size()) != n || (vo.whole_every > 0 && it % vo.whole_every == 0))
       return nullptr;
-    const int k = int(st.skin_joints.size()) / std::max(1, n);
-    vis_points.resize(3 * size_t(n));
-#pragma omp parallel for schedule(static) if (n > 16384)
-    for (int i = 0; i < n; ++i) {
-      const Eigen::Matrix<double, 3, 4> M = blend_skin_transform(
-          bs.transforms, &st.skin_joints[size_t(k) * i], &st.skin_weights[size_t(k) * i], k);
-      const Eigen::Vector3d x(canon.means[3 * size_t(i)] + pose_off[3 * size_t(i)],
-                              canon.means[3 * size_t(i) + 1] + pose_off[3 * size_t(i) + 1],
-                              canon.means[3 * size_t(i) + 2] + pose_off[3 * size_t(i) + 2]);
-      const Eigen::Vector3d p = M.leftCols<3>() * x + M.col(3);
-      for (int c = 0; c < 3; ++c) vis_points[3 * size_t(i) + c] = float(p(c));
-    }
+    // The last decode's Gaussians posed for the frame (the one LBS, with the template's weights).
+    lbs_forward(canon, pose_off.data(), st.skin_joints, st.skin_weights, bs.transforms, vis_posed);
     // With the footprint: each Gaussian's largest standard deviation at its last decode.
     if (vo.footprint) {
       vis_sigmas.resize(size_t(n));
@@ -380,8 +373,8 @@ struct Trainer::Impl {
         vis_sigmas[size_t(i)] = std::exp(std::max(ls[0], std::max(ls[1], ls[2])));
       }
     }
-    const int m = visible_points(vis_points.data(), vo.footprint ? vis_sigmas.data() : nullptr, n,
-                                 fr.camera, vo, &visible);
+    const int m = visible_points(vis_posed.means.data(), vo.footprint ? vis_sigmas.data() : nullptr,
+                                 n, fr.camera, vo, &visible);
     if (m < n) visible_sum += m, ++visible_steps;
     return m < n ? &visible : nullptr;
   }
