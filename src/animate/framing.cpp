@@ -13,7 +13,7 @@ void motion_bounds(const Avatar& a, const Motion& m, Eigen::Vector3d& lo, Eigen:
   Gaussians g;
   const size_t step = std::max<size_t>(1, m.frames.size() / 16);
   for (size_t f = 0; f < m.frames.size(); f += step) {
-    pose_avatar(a, m.frames[f], g);
+    pose_avatar(a, m.frames[f], g, nullptr, f > 0);
     const size_t stride = std::max<size_t>(1, g.size() / 20000);
     for (size_t i = 0; i < g.size(); i += stride) {
       if (g.opacity_logits[i] < -2.f) continue;

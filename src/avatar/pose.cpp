@@ -79,13 +79,14 @@ std::vector<float> avatar_anchor_normals(const Avatar& a) {
   return out;
 }
 
-void pose_avatar(const Avatar& a, const BodyParams& p, Gaussians& out, const BackfaceCull* cull) {
+void pose_avatar(const Avatar& a, const BodyParams& p, Gaussians& out, const BackfaceCull* cull,
+                 bool keep_unposed) {
   const PosedSkeleton<double> sk = avatar_skeleton(a, p);
   // Pose correctives: offsets = posedirs * (R_j - I) of the joints j >= 1.
   Eigen::VectorXf offsets;
   if (a.posedirs.size() > 0) offsets = a.posedirs * pose_feature(sk.local).cast<float>();
   lbs_forward(a.gaussians, offsets.size() > 0 ? offsets.data() : nullptr, a.skin_joints,
-              a.skin_weights, sk.transforms, out, nullptr, cull);
+              a.skin_weights, sk.transforms, out, nullptr, cull, keep_unposed);
 }
 
 Gaussians pose_avatar(const Avatar& a, const BodyParams& p) {

@@ -36,9 +36,10 @@ std::vector<float> avatar_anchor_normals(const Avatar& avatar);
 
 // Poses the canonical Gaussians with the avatar's skeleton, pose correctives and skin weights:
 // the training's LBS (body/lbs.hpp), with optional back-face culling. `out` is resized, its
-// buffers reused.
+// buffers reused; keep_unposed: `out` was posed from this avatar before, its scales and SH are
+// kept (lbs_forward).
 void pose_avatar(const Avatar& avatar, const BodyParams& params, Gaussians& out,
-                 const BackfaceCull* cull = nullptr);
+                 const BackfaceCull* cull = nullptr, bool keep_unposed = false);
 Gaussians pose_avatar(const Avatar& avatar, const BodyParams& params);
 
 // Pose parameters from the PARAMS.json layout (BodyParams::from_json) checked against the

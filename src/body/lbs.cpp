@@ -1,17 +1,129 @@
 #include "body/lbs.hpp"
+#pragma GCC diagnostic ignored "-Wpsabi"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "core/error.hpp"
 #include "core/rotation.hpp"
+#include "core/simd.hpp"
 
 namespace ks {
+
+namespace {
+
+// What one lbs_forward call applies to every block.
+struct LbsJob {
+  const Gaussians* c;
+  const float* pose_offsets;
+  const int* joints;
+  const float* weights;
+  int K;
+  const float* tf;  // 12 per joint: the skinning transforms' top 3 x 4, row-major, float
+  Gaussians* posed;
+  LbsCache* cache;
+  const float* nrm;  // 3N anchor normals for culling, or nullptr
+  float eye[3], thr;
+};
+
+// Gaussians [i0, i0 + n) (n <= CW; the other lanes repeat the first and are not stored).
+template <int CW>
+[[gnu::always_inline]] inline void lbs_block(const LbsJob& job, size_t i0, int n) {
+  using L = Lanes<CW>;
+  using V = typename L::V;
+  auto at = [&](int l) { return i0 + size_t(l < n ? l : 0); };
+  // M = sum_k w_k A_{j_k}[0:3, :] (zero weights add nothing).
+  V M[12];
+  for (V& e : M) e = V{};
+  for (int q = 0; q < job.K; ++q) {
+    V w;
+    const float* T[CW];
+    for (int l = 0; l < CW; ++l) {
+      const size_t k = size_t(job.K) * at(l) + size_t(q);
+      w[l] = job.weights[k];
+      T[l] = job.tf + 12 * size_t(job.joints[k]);
+    }
+    for (int e = 0; e < 12; ++e) {
+      V t;
+      for (int l = 0; l < CW; ++l) t[l] = T[l][e];
+      M[e] += w * t;
+    }
+  }
+  V x[3] = {}, qc[4] = {};
+  for (int l = 0; l < CW; ++l) {
+    const size_t i = at(l);
+    for (int k = 0; k < 3; ++k)
+      x[k][l] = job.c->means[3 * i + k] + (job.pose_offsets ? job.pose_offsets[3 * i + k] : 0.f);
+    for (int k = 0; k < 4; ++k) qc[k][l] = job.c->quats[4 * i + k];
+  }
+  V m[3];
+  for (int r = 0; r < 3; ++r)
+    m[r] = M[4 * r] * x[0] + M[4 * r + 1] * x[1] + M[4 * r + 2] * x[2] + M[4 * r + 3];
+  const V R[9] = {M[0], M[1], M[2], M[4], M[5], M[6], M[8], M[9], M[10]};
+  V qb[4], qp[4];
+  matrix_to_quat<L>(R, qb);
+  quat_mul(qb, qc, qp);
+  typename L::I culled{};
+  if (job.nrm) {
+    auto normal = [&](int k) {
+      V v{};
+      for (int l = 0; l < CW; ++l) v[l] = job.nrm[3 * at(l) + size_t(k)];
+      return v;
+    };
+    const V n0[3] = {normal(0), normal(1), normal(2)};
+    const V nx = M[0] * n0[0] + M[1] * n0[1] + M[2] * n0[2];
+    const V ny = M[4] * n0[0] + M[5] * n0[1] + M[6] * n0[2];
+    const V nz = M[8] * n0[0] + M[9] * n0[1] + M[10] * n0[2];
+    const V vx = m[0] - job.eye[0], vy = m[1] - job.eye[1], vz = m[2] - job.eye[2];
+    const V d = nx * vx + ny * vy + nz * vz;
+    // cos > thr without square roots (d > 0 is required first).
+    culled = (d > 0.f) & (d * d > job.thr * job.thr * (nx * nx + ny * ny + nz * nz) *
+                                      (vx * vx + vy * vy + vz * vz));
+  }
+  for (int l = 0; l < n; ++l) {
+    const size_t i = i0 + size_t(l);
+    for (int k = 0; k < 3; ++k) job.posed->means[3 * i + k] = m[k][l];
+    for (int k = 0; k < 4; ++k) job.posed->quats[4 * i + k] = qp[k][l];
+    if (culled[l]) job.posed->opacity_logits[i] = kCulledOpacityLogit;
+    if (job.cache) {
+      for (int e = 0; e < 12; ++e) job.cache->M[12 * i + size_t(e)] = M[e][l];
+      for (int k = 0; k < 4; ++k) job.cache->qblend[4 * i + k] = qb[k][l];
+    }
+  }
+}
+
+template <int CW>
+[[gnu::always_inline]] inline void lbs_range(const LbsJob& job, size_t b, size_t e) {
+  for (size_t i0 = b; i0 < e; i0 += CW) lbs_block<CW>(job, i0, int(std::min<size_t>(CW, e - i0)));
+}
+
+void lbs_range_sse2(const LbsJob& job, size_t b, size_t e) {
+  lbs_range<4>(job, b, e);
+}
+
+// (Called from inside the OpenMP loop: its outlined body would not inherit the target.)
+__attribute__((target("avx2"), flatten)) void lbs_range_avx2(const LbsJob& job, size_t b,
+                                                             size_t e) {
+  lbs_range<8>(job, b, e);
+}
+
+bool lbs_avx2() {
+#if defined(__x86_64__)
+  static const bool ok = __builtin_cpu_supports("avx2");
+  return ok;
+#else
+  return false;
+#endif
+}
+
+}  // namespace
 
 void lbs_forward(const Gaussians& c, const float* pose_offsets, const std::vector<int>& skin_joints,
                  const std::vector<float>& skin_weights,
                  const std::vector<Eigen::Matrix4d>& transforms, Gaussians& posed, LbsCache* cache,
-                 const BackfaceCull* cull) {
+                 const BackfaceCull* cull, bool keep_unposed) {
   const long n = long(c.size());
   const int K = n > 0 ? int(skin_joints.size() / size_t(n)) : 4;
   if (n > 0 && (K < 1 || skin_joints.size() != size_t(K) * size_t(n) ||
@@ -19,53 +131,54 @@ void lbs_forward(const Gaussians& c, const float* pose_offsets, const std::vecto
     throw Error("lbs_forward: skin joints/weights must be K per Gaussian");
   if (cull && !(cull->threshold >= 0.f && cull->threshold <= 1.f))
     throw Error("lbs_forward: the back-face cull threshold must be in [0, 1]");
+  for (const int j : skin_joints)
+    if (j < 0 || size_t(j) >= transforms.size())
+      throw Error("lbs_forward: skin joint " + std::to_string(j) + " out of range (" +
+                  std::to_string(transforms.size()) + " transforms)");
   posed.sh_degree = c.sh_degree;
   posed.means.resize(3 * size_t(n));
   posed.quats.resize(4 * size_t(n));
-  posed.log_scales = c.log_scales;
-  posed.opacity_logits = c.opacity_logits;
-  posed.sh = c.sh;
+  if (!keep_unposed || posed.log_scales.size() != c.log_scales.size() ||
+      posed.sh.size() != c.sh.size()) {
+    posed.log_scales = c.log_scales;
+    posed.sh = c.sh;
+  }
+  posed.opacity_logits = c.opacity_logits;  // culling rewrites them every call
   if (cache) {
     cache->M.resize(12 * size_t(n));
     cache->qblend.resize(4 * size_t(n));
   }
-  const float* nrm =
-      cull && cull->normals && cull->normals->size() == 3 * size_t(n) && cull->threshold < 1.f
-          ? cull->normals->data()
-          : nullptr;
-  const float ex = nrm ? float(cull->eye.x()) : 0.f, ey = nrm ? float(cull->eye.y()) : 0.f,
-              ez = nrm ? float(cull->eye.z()) : 0.f, thr = nrm ? cull->threshold : 1.f;
+  std::vector<float> tf(12 * transforms.size());
+  for (size_t j = 0; j < transforms.size(); ++j)
+    for (int r = 0; r < 3; ++r)
+      for (int cc = 0; cc < 4; ++cc) tf[12 * j + size_t(4 * r + cc)] = float(transforms[j](r, cc));
+  LbsJob job{&c,
+             pose_offsets,
+             skin_joints.data(),
+             skin_weights.data(),
+             K,
+             tf.data(),
+             &posed,
+             cache,
+             nullptr,
+             {0.f, 0.f, 0.f},
+             1.f};
+  if (cull && cull->normals && cull->normals->size() == 3 * size_t(n) && cull->threshold < 1.f) {
+    job.nrm = cull->normals->data();
+    for (int k = 0; k < 3; ++k) job.eye[k] = float(cull->eye[k]);
+    job.thr = cull->threshold;
+  }
+  // Blocks of 4 (SSE2) or 8 (AVX2) Gaussians, the same operations at both widths.
+  constexpr size_t kChunk = 512;
+  const long chunks = long((size_t(n) + kChunk - 1) / kChunk);
+  const bool wide = lbs_avx2();
 #pragma omp parallel for schedule(static) if (n > 1024)
-  for (long i = 0; i < n; ++i) {
-    const size_t u = size_t(i);
-    const Eigen::Matrix<double, 3, 4> A = blend_skin_transform(
-        transforms, &skin_joints[size_t(K) * u], &skin_weights[size_t(K) * u], K);
-    float a[12];
-    for (int r = 0; r < 3; ++r)
-      for (int cc = 0; cc < 4; ++cc) a[4 * r + cc] = float(A(r, cc));
-    if (cache) std::copy(a, a + 12, cache->M.data() + 12 * u);
-    double x[3];
-    for (int k = 0; k < 3; ++k)
-      x[k] = c.means[3 * u + k] + (pose_offsets ? pose_offsets[3 * u + k] : 0.f);
-    float* m = posed.means.data() + 3 * u;
-    for (int r = 0; r < 3; ++r)
-      m[r] = float(A(r, 0) * x[0] + A(r, 1) * x[1] + A(r, 2) * x[2] + A(r, 3));
-    float qb[4];
-    matrix_to_quat(A.leftCols<3>(), qb);
-    if (cache) std::copy(qb, qb + 4, cache->qblend.data() + 4 * u);
-    quat_mul(qb, c.quats.data() + 4 * u, posed.quats.data() + 4 * u);
-    if (nrm) {
-      const float* n0 = nrm + 3 * u;
-      const float nx = a[0] * n0[0] + a[1] * n0[1] + a[2] * n0[2];
-      const float ny = a[4] * n0[0] + a[5] * n0[1] + a[6] * n0[2];
-      const float nz = a[8] * n0[0] + a[9] * n0[1] + a[10] * n0[2];
-      const float vx = m[0] - ex, vy = m[1] - ey, vz = m[2] - ez;
-      const float d = nx * vx + ny * vy + nz * vz;
-      // cos > thr without square roots (d > 0 is required first).
-      if (d > 0.f &&
-          d * d > thr * thr * (nx * nx + ny * ny + nz * nz) * (vx * vx + vy * vy + vz * vz))
-        posed.opacity_logits[u] = kCulledOpacityLogit;
-    }
+  for (long ch = 0; ch < chunks; ++ch) {
+    const size_t b = size_t(ch) * kChunk, e = std::min(size_t(n), b + kChunk);
+    if (wide)
+      lbs_range_avx2(job, b, e);
+    else
+      lbs_range_sse2(job, b, e);
   }
 }
 

@@ -51,11 +51,15 @@ struct LbsCache {
 // Poses canonical Gaussians with k = skin_joints.size() / N weights each. pose_offsets: 3N or
 // nullptr. Opacities, scales and SH are copied (opacities of culled Gaussians set to
 // kCulledOpacityLogit when `cull` is given). `posed` is resized, its buffers reused; `cache` may
-// be nullptr (playback). OpenMP over Gaussians. Throws ks::Error on inconsistent sizes.
+// be nullptr (playback). keep_unposed: `posed` holds these canonical Gaussians' scales and SH
+// from an earlier call (playback of one avatar), so they are not copied again (the SH are most
+// of the bytes); a size mismatch copies them anyway. OpenMP over Gaussians. Throws ks::Error on
+// inconsistent sizes.
 void lbs_forward(const Gaussians& canonical, const float* pose_offsets,
                  const std::vector<int>& skin_joints, const std::vector<float>& skin_weights,
                  const std::vector<Eigen::Matrix4d>& transforms, Gaussians& posed,
-                 LbsCache* cache = nullptr, const BackfaceCull* cull = nullptr);
+                 LbsCache* cache = nullptr, const BackfaceCull* cull = nullptr,
+                 bool keep_unposed = false);
 // dmeans (3N), dquats (4N) of the posed Gaussians -> canonical (overwrites dmeans_c, dquats_c).
 // Log-scales, opacities and SH pass through unchanged (the caller reuses their gradients).
 void lbs_backward(const LbsCache& cache, const std::vector<float>& dmeans_posed,

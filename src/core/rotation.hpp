@@ -114,12 +114,33 @@ inline Eigen::Matrix<T, 3, 3> quat_to_matrix(T w, T x, T y, T z) {
   return R;
 }
 
-// The unit quaternion (w, x, y, z) of a matrix that is close to a rotation (e.g. a blend of
-// skinning rotations): Eigen's conversion (Shepperd's case split), then normalised.
-inline void matrix_to_quat(const Eigen::Matrix3d& R, float q[4]) {
-  Eigen::Quaterniond e(R);
-  e.normalize();
-  q[0] = float(e.w()), q[1] = float(e.x()), q[2] = float(e.y()), q[3] = float(e.z());
+// The unit quaternions (w, x, y, z) of CW matrices close to rotations (e.g. blends of skinning
+// rotations) at once, L a core/simd.hpp Lanes: Shepperd's case split as Eigen's conversion makes
+// it (the trace when positive, else the largest diagonal entry), each lane's case chosen by
+// selects instead of branches, then normalised. m: row-major 3 x 3, one vector per entry.
+template <class L>
+inline void matrix_to_quat(const typename L::V* m, typename L::V* q) {
+  using V = typename L::V;
+  using I = typename L::I;
+  const V m00 = m[0], m01 = m[1], m02 = m[2], m10 = m[3], m11 = m[4], m12 = m[5], m20 = m[6],
+          m21 = m[7], m22 = m[8];
+  const I cw = m00 + m11 + m22 > 0.0f;
+  const I y_over_x = m11 > m00;  // Eigen: i = argmax of the diagonal, the first of ties
+  const I cz = ~cw & (m22 > L::sel(y_over_x, m11, m00));
+  const I cy = ~cw & ~cz & y_over_x;
+  const I cx = ~cw & ~cz & ~cy;
+  const V one = L::splat(1.f);
+  const V s = L::sel(
+      cw, m00 + m11 + m22 + one,
+      L::sel(cx, m00 - m11 - m22 + one, L::sel(cy, m11 - m22 - m00 + one, m22 - m00 - m11 + one)));
+  const V r = L::sqrt(s), h = 0.5f / r, big = 0.5f * r;
+  const V a = m21 - m12, b = m02 - m20, c = m10 - m01, d = m10 + m01, e = m20 + m02, f = m21 + m12;
+  const V w = L::sel(cw, big, L::sel(cx, a, L::sel(cy, b, c)) * h);
+  const V x = L::sel(cx, big, L::sel(cw, a, L::sel(cy, d, e)) * h);
+  const V y = L::sel(cy, big, L::sel(cw, b, L::sel(cx, d, f)) * h);
+  const V z = L::sel(cz, big, L::sel(cw, c, L::sel(cx, e, f)) * h);
+  const V n = L::sqrt(w * w + x * x + y * y + z * z);
+  q[0] = w / n, q[1] = x / n, q[2] = y / n, q[3] = z / n;
 }
 
 }  // namespace ks

@@ -131,5 +131,33 @@ TEST(Lbs, PlaybackPosesAsTraining) {
   EXPECT_GT(off, 1e-3f);
 }
 
+TEST(Lbs, KeepUnposedWritesWhatThePoseChanges) {
+  std::mt19937_64 rng(9);
+  const int n = 50, J = 3, K = 2;
+  Gaussians c;
+  c.sh_degree = 1;
+  c.resize(n);
+  for (float& v : c.means) v = float(test::randv(1, rng)[0]);
+  for (float& v : c.log_scales) v = float(test::randv(1, rng)[0]) - 3.f;
+  for (float& v : c.opacity_logits) v = float(test::randv(1, rng)[0]);
+  for (float& v : c.sh) v = float(test::randv(1, rng)[0]);
+  for (int i = 0; i < n; ++i) c.quats[4 * size_t(i)] = 1.f;
+  std::vector<int> sj(size_t(n) * K);
+  std::vector<float> sw(size_t(n) * K, 0.5f);
+  for (size_t q = 0; q < sj.size(); ++q) sj[q] = int(q % J);
+  const auto T1 = random_transforms(J, rng), T2 = random_transforms(J, rng);
+  Gaussians fresh, kept;
+  lbs_forward(c, nullptr, sj, sw, T2, fresh);
+  // Kept across calls: the second pose gives what a fresh call gives.
+  lbs_forward(c, nullptr, sj, sw, T1, kept, nullptr, nullptr, true);  // empty: copies anyway
+  ASSERT_EQ(kept.sh, c.sh);
+  lbs_forward(c, nullptr, sj, sw, T2, kept, nullptr, nullptr, true);
+  EXPECT_EQ(kept.means, fresh.means);
+  EXPECT_EQ(kept.quats, fresh.quats);
+  EXPECT_EQ(kept.log_scales, fresh.log_scales);
+  EXPECT_EQ(kept.opacity_logits, fresh.opacity_logits);
+  EXPECT_EQ(kept.sh, fresh.sh);
+}
+
 }  // namespace
 }  // namespace ks

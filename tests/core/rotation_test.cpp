@@ -2,6 +2,7 @@
 // backward against finite differences, the same template on ceres::Jet (where Ceres is
 // installed), quaternion helpers against Eigen.
 #include "core/rotation.hpp"
+#include "core/simd.hpp"
 
 #include <gtest/gtest.h>
 
@@ -94,6 +95,27 @@ TEST(Rotation, RodriguesOnJetsGivesTheAnalyticDerivatives) {
 }
 #endif
 
+TEST(Rotation, MatrixToQuatTakesEachOfShepperdsCases) {
+  // A small rotation (the trace case) and half-turns nearly about x, y and z (the diagonal cases).
+  using L = Lanes<4>;
+  const Eigen::Vector3d axes[4] = {
+      {0.3, -0.5, 0.8}, {1, 0.05, -0.02}, {0.03, 1, 0.04}, {-0.02, 0.05, 1}};
+  const double angles[4] = {0.2, 3.0, 3.0, 3.0};
+  L::V m[9], q[4];
+  Eigen::Quaterniond ref[4];
+  for (int l = 0; l < 4; ++l) {
+    ref[l] = Eigen::Quaterniond(Eigen::AngleAxisd(angles[l], axes[l].normalized()));
+    const Eigen::Matrix3d R = ref[l].toRotationMatrix();
+    for (int e = 0; e < 9; ++e) m[e][l] = float(R(e / 3, e % 3));
+  }
+  matrix_to_quat<L>(m, q);
+  for (int l = 0; l < 4; ++l) {
+    const double s =
+        q[0][l] * ref[l].w() + q[1][l] * ref[l].x() + q[2][l] * ref[l].y() + q[3][l] * ref[l].z();
+    EXPECT_NEAR(std::abs(s), 1.0, 1e-6) << l;
+  }
+}
+
 TEST(Rotation, QuaternionsMatchEigen) {
   std::mt19937_64 rng(3);
   for (int t = 0; t < 50; ++t) {
@@ -111,12 +133,30 @@ TEST(Rotation, QuaternionsMatchEigen) {
     EXPECT_LT((quat_to_matrix(a.w(), a.x(), a.y(), a.z()) - a.toRotationMatrix()).norm(), 1e-14);
     // Back from the matrix (up to sign); from a shrunk blend of rotations still a unit
     // quaternion near the rotation's.
-    float q[4];
-    matrix_to_quat(a.toRotationMatrix(), q);
-    EXPECT_NEAR(std::abs(q[0] * a.w() + q[1] * a.x() + q[2] * a.y() + q[3] * a.z()), 1.0, 1e-6);
-    matrix_to_quat(0.97 * a.toRotationMatrix(), q);
-    EXPECT_NEAR(std::abs(q[0] * a.w() + q[1] * a.x() + q[2] * a.y() + q[3] * a.z()), 1.0, 1e-3);
-    EXPECT_NEAR(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3], 1.0, 1e-6);
+    // Four lanes: the rotation, a shrunk copy, and the two again transposed (the inverse).
+    using L = Lanes<4>;
+    L::V m[9], q[4];
+    const Eigen::Matrix3d Ra = a.toRotationMatrix();
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        m[3 * r + c] =
+            L::V{float(Ra(r, c)), float(0.97 * Ra(r, c)), float(Ra(c, r)), float(0.97 * Ra(c, r))};
+    matrix_to_quat<L>(m, q);
+    for (int l = 0; l < 4; ++l) {
+      const double sx = l < 2 ? 1.0 : -1.0;  // the inverse: conjugate
+      const double dot =
+          q[0][l] * a.w() + sx * (q[1][l] * a.x() + q[2][l] * a.y() + q[3][l] * a.z());
+      EXPECT_NEAR(std::abs(dot), 1.0, l % 2 ? 1e-3 : 1e-6) << l;
+      EXPECT_NEAR(q[0][l] * q[0][l] + q[1][l] * q[1][l] + q[2][l] * q[2][l] + q[3][l] * q[3][l],
+                  1.0, 1e-6);
+      // Against Eigen's conversion, up to sign.
+      Eigen::Matrix3d Rl;
+      for (int e = 0; e < 9; ++e) Rl(e / 3, e % 3) = m[e][l];
+      const Eigen::Quaterniond ref = Eigen::Quaterniond(Rl).normalized();
+      const double s =
+          q[0][l] * ref.w() + q[1][l] * ref.x() + q[2][l] * ref.y() + q[3][l] * ref.z();
+      EXPECT_NEAR(std::abs(s), 1.0, 1e-6) << l;
+    }
   }
 }
 
