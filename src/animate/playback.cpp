@@ -31,6 +31,7 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
                 std::to_string(o.backface_cull));
   RasterSettings rs;
   std::copy(o.background, o.background + 3, rs.background);
+  rs.image_only = true;
   const Motion motion = load_motion(o.motion, o.frames);
   if (motion.frames.empty()) throw Error("motion \"" + o.motion + "\" has no frames");
   const int F = int(motion.frames.size());
@@ -75,7 +76,7 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
   for (int f = 0; f < F; ++f) {
     const auto t0 = std::chrono::steady_clock::now();
     cull.eye = cams[f].centre();
-    pose_avatar(avatar, motion.frames[f], g, rep.culled ? &cull : nullptr);
+    pose_avatar(avatar, motion.frames[f], g, rep.culled ? &cull : nullptr, f > 0);
     rasterize_forward(g, cams[f], rs, rr);
     render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     char name[32];

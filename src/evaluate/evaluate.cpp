@@ -23,6 +23,7 @@ EvalReport evaluate_avatar(const Avatar& avatar, const Dataset& ds, const std::s
   EvalReport rep;
   RasterSettings rs;
   for (int k = 0; k < 3; ++k) rs.background[k] = ds.background[k];
+  rs.image_only = true;
   RasterResult rr;
   Gaussians posed;
   Progress progress("evaluate", long(ds.frames.size()));
@@ -31,7 +32,7 @@ EvalReport evaluate_avatar(const Avatar& avatar, const Dataset& ds, const std::s
   for (size_t i = 0; i < ds.frames.size(); ++i) {
     const LoadedFrame fr = load_frame(ds, dir, i, scale);
     const auto t0 = std::chrono::steady_clock::now();
-    pose_avatar(avatar, fr.pose, posed);
+    pose_avatar(avatar, fr.pose, posed, nullptr, i > 0);
     rasterize_forward(posed, fr.camera, rs, rr);
     render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const ImageMetrics m = compute_metrics(rr.color, fr.image, fr.mask);

@@ -2,7 +2,8 @@
 // every Gaussian before compositing, and after the backward tile pass take its summed
 // screen-space gradients back to the raw parameters. Both are built from the forward / backward
 // pairs of projection.hpp and sh.hpp; the backward reuses the forward's 3D covariance and
-// conic instead of recomputing them.
+// conic instead of recomputing them. The float forward runs in blocks (preprocess_simd.cpp);
+// the forward here is the double path of the tests.
 #include <omp.h>
 
 #include "raster/raster_internal.hpp"
@@ -22,8 +23,6 @@ void preprocess_forward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ras
 #pragma omp parallel for schedule(static)
   for (size_t i = 0; i < N; ++i) {
     out.radii[i] = 0;
-    int* rect = &out.rects[4 * i];
-    rect[0] = 0, rect[1] = -1, rect[2] = 0, rect[3] = -1;
     const V3<T> m(g.means[3 * i], g.means[3 * i + 1], g.means[3 * i + 2]);
     const V3<T> p = world_to_camera(cam, m);
     const T z = p.z();
@@ -50,10 +49,12 @@ void preprocess_forward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ras
     const T fy0 = std::ceil(v - ey - T(0.5)), fy1 = std::floor(v + ey - T(0.5));
     if (!(fx1 >= 0 && fy1 >= 0 && fx0 <= T(W - 1) && fy0 <= T(H - 1))) continue;
     if (!(fx0 <= fx1 && fy0 <= fy1)) continue;
-    rect[0] = int(std::max(fx0, T(0)));
-    rect[1] = int(std::min(fx1, T(W - 1)));
-    rect[2] = int(std::max(fy0, T(0)));
-    rect[3] = int(std::min(fy1, T(H - 1)));
+    // The render record (the layout of RasterResultT::packed), written as it is computed.
+    T* rec = &out.records[kRec * i];
+    rec[10] = std::max(fx0, T(0));
+    rec[11] = std::min(fx1, T(W - 1));
+    rec[12] = std::max(fy0, T(0));
+    rec[13] = std::min(fy1, T(H - 1));
     const T mid = T(0.5) * (A + C);
     const T lam1 = mid + std::sqrt(std::max(T(0.1), mid * mid - det));
     out.radii[i] = std::max(1, int(std::ceil(3 * std::sqrt(lam1))));
@@ -65,7 +66,12 @@ void preprocess_forward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ras
     // Colour from SH, view direction = mean - camera centre.
     T dist;
     const V3<T> dir = sh::view_direction(m, cam.centre, &dist);
-    sh::sh_to_color(deg, &g.sh[i * K * 3], dir, &out.colors[3 * i], &out.sh_clamped[3 * i]);
+    sh::sh_to_color(deg, &g.sh[i * K * 3], dir, rec + 6, &out.sh_clamped[3 * i]);
+    rec[0] = u, rec[1] = v;
+    rec[2] = out.conics[3 * i], rec[3] = out.conics[3 * i + 1], rec[4] = out.conics[3 * i + 2];
+    rec[5] = o;
+    rec[9] = z;
+    rec[14] = rec[15] = 0;
   }
 }
 
@@ -124,8 +130,6 @@ void preprocess_backward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ra
   }
 }
 
-template void preprocess_forward(const GaussiansT<float>&, const CameraT<float>&,
-                                 const RasterSettings&, RasterResultT<float>&);
 template void preprocess_forward(const GaussiansT<double>&, const CameraT<double>&,
                                  const RasterSettings&, RasterResultT<double>&);
 template void preprocess_backward(const GaussiansT<float>&, const CameraT<float>&,

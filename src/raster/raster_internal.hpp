@@ -8,6 +8,7 @@
 #endif
 
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -59,8 +60,9 @@ constexpr int kCW = 8;
 constexpr int kCW = 4;
 #endif
 
-// Whether the AVX2 kernels run for these settings (float only; throws for kAvx2 without AVX2).
-bool use_avx2(const RasterSettings& s);
+// The tile kernels these settings run (float; throws for a kernel the CPU lacks).
+enum class Isa { kBaseline, kAvx2, kAvx512 };
+Isa choose_isa(const RasterSettings& s);
 
 // Explicit SIMD over the CW pixels of a chunk (GCC/Clang vector extensions: SSE2 on the
 // baseline build, wider with -march or target("avx2")). The double instantiation (tests) uses
@@ -77,6 +79,11 @@ template <>
 struct VecTypes<float, 8> {
   typedef float V __attribute__((vector_size(32)));
   typedef int32_t I __attribute__((vector_size(32)));
+};
+template <>
+struct VecTypes<float, 16> {
+  typedef float V __attribute__((vector_size(64)));
+  typedef int32_t I __attribute__((vector_size(64)));
 };
 template <>
 struct VecTypes<double, 4> {
@@ -103,13 +110,10 @@ struct Simd<float, CW> {
     const V t = x * 1.4426950408889634f;
     const V k = (t + 12582912.0f) - 12582912.0f;
     const V r = (x - k * 0.693145751953125f) - k * 1.428606765330187e-06f;
-    V p = V{} + 1.0f / 720.0f;
-    p = p * r + 1.0f / 120.0f;
-    p = p * r + 1.0f / 24.0f;
-    p = p * r + 1.0f / 6.0f;
-    p = p * r + 0.5f;
-    p = p * r + 1.0f;
-    p = p * r + 1.0f;
+    const V r2 = r * r, r4 = r2 * r2;
+    const V p01 = r + 1.0f, p23 = r * (1.0f / 6.0f) + 0.5f,
+            p45 = r * (1.0f / 120.0f) + 1.0f / 24.0f;
+    const V p = (p01 + r2 * p23) + r4 * (p45 + r2 * (1.0f / 720.0f));
     const I bits = (__builtin_convertvector(k, I) + 127) << 23;
     return p * (V)bits;
   }
@@ -117,6 +121,20 @@ struct Simd<float, CW> {
   [[gnu::always_inline]] static int count(const I& m) {
 #if defined(__SSE2__)
     if constexpr (CW == 4) return __builtin_popcount(_mm_movemask_ps(_mm_castsi128_ps((__m128i)m)));
+    if constexpr (CW == 8) {
+      // Halving sums of the 0 / -1 lanes, generic vector code that becomes AVX2 where the
+      // AVX2 kernel inlines it (an intrinsic would need the target here too).
+      const I h = m + __builtin_shufflevector(m, m, 4, 5, 6, 7, 0, 1, 2, 3);
+      const I q = h + __builtin_shufflevector(h, h, 2, 3, 0, 1, 2, 3, 0, 1);
+      return -int(q[0] + q[1]);
+    }
+    if constexpr (CW == 16) {
+      const I h =
+          m + __builtin_shufflevector(m, m, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7);
+      const I q = h + __builtin_shufflevector(h, h, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3);
+      const I e = q + __builtin_shufflevector(q, q, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1);
+      return -int(e[0] + e[1]);
+    }
 #endif
     int n = 0;
     for (int l = 0; l < CW; ++l) n -= int(m[l]);
@@ -156,6 +174,31 @@ template <class V, int CW>
   return v;
 }
 
+// A finished tile's pixels from its tile-local state (kTilePixels each) into `out`: colour over
+// the background by the final transmittance |Tt|, alpha, and with `full` the expected depth and
+// the backward's state (final transmittance, last contributor).
+template <class T, class S>
+[[gnu::always_inline]] inline void store_tile(RasterResultT<T>& out, int ox, int oy, const T* bg,
+                                              const T* Tt, const T* C0, const T* C1, const T* C2,
+                                              const T* Dp, const S* last, bool full) {
+  const int W = out.color.width, H = out.color.height;
+  for (int r = 0; r < kTS && oy + r < H; ++r)
+    for (int c = 0; c < kTS && ox + c < W; ++c) {
+      const int p = r * kTS + c;
+      const size_t pix = size_t(oy + r) * W + ox + c;
+      const T Tf = std::abs(Tt[p]);
+      out.color.data[3 * pix] = C0[p] + Tf * bg[0];
+      out.color.data[3 * pix + 1] = C1[p] + Tf * bg[1];
+      out.color.data[3 * pix + 2] = C2[p] + Tf * bg[2];
+      out.alpha.data[pix] = 1 - Tf;
+      if (full) {
+        out.depth.data[pix] = Dp[p];
+        out.final_T[pix] = Tf;
+        out.n_contrib[pix] = uint32_t(last[p]);
+      }
+    }
+}
+
 template <class T>
 void check_gaussians(const GaussiansT<T>& g) {
   const size_t n = g.size();
@@ -169,7 +212,8 @@ void check_gaussians(const GaussiansT<T>& g) {
 
 // ---- The phases (each defined in its own source, instantiated for float and double).
 
-// preprocess.cpp: project every Gaussian (culling, screen footprint, colour) into `out`.
+// preprocess.cpp: project every Gaussian (culling, screen footprint, colour) into `out`, one at a
+// time with the projection.hpp pairs (instantiated for double: float takes the block version).
 template <class T>
 void preprocess_forward(const GaussiansT<T>& g, const CameraT<T>& cam, const RasterSettings& s,
                         RasterResultT<T>& out);
@@ -178,18 +222,29 @@ void preprocess_forward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ras
 template <class T>
 void preprocess_backward(const GaussiansT<T>& g, const CameraT<T>& cam, const RasterResultT<T>& fwd,
                          int threads, RasterGradsT<T>& gr);
+// preprocess_simd.cpp: the same projection for float, blocks of 4 (SSE2) or 8 (AVX2) Gaussians.
+void preprocess_forward_simd(const GaussiansT<float>& g, const CameraT<float>& cam,
+                             const RasterSettings& s, Isa isa, RasterResultT<float>& out);
 // binning.cpp: depth order of the visible Gaussians, their render records, per-tile lists.
 template <class T>
 void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y);
 // tiles_forward.cpp: front-to-back compositing of every tile.
 template <class T>
-void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* bg, bool avx2);
+void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* bg, Isa isa);
+// tiles_forward_avx512.cpp: one tile of the forward pass with AVX-512 (x86-64 only); full: also
+// the expected depth and the backward's state (not for an image_only forward).
+void composite_tile_avx512(RasterResultT<float>& out, int tile, int tiles_x, int W, int H,
+                           const float* bg, bool full);
 // tiles_backward.cpp: every tile in reverse order, screen-space gradients into per-thread
 // accumulators (kNG per Gaussian, `threads` buffers in gr.scratch).
 template <class T>
 void backward_tiles(const RasterResultT<T>& fwd, const ImageT<T>& dLdc, const ImageT<T>& dLda,
-                    const T* bg, int tiles_x, int tiles_y, bool avx2, int threads,
+                    const T* bg, int tiles_x, int tiles_y, Isa isa, int threads,
                     RasterGradsT<T>& gr);
+// tiles_backward_avx512.cpp: one tile of the backward pass with AVX-512 (x86-64 only).
+void backward_tile_avx512(const RasterResultT<float>& fwd, const ImageT<float>& dLdc,
+                          const ImageT<float>& dLda, bool has_da, const float* bg, float* acc,
+                          int tile, int tiles_x, int W, int H);
 
 }  // namespace ks::raster
 

@@ -17,19 +17,36 @@ bool raster_avx2_available() {
 #endif
 }
 
+bool raster_avx512_available() {
+#if defined(__x86_64__)
+  static const bool ok = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+                         __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl");
+  return ok;
+#else
+  return false;
+#endif
+}
+
 namespace raster {
 
-bool use_avx2(const RasterSettings& s) {
+Isa choose_isa(const RasterSettings& s) {
   switch (s.kernel) {
     case RasterKernel::kBaseline:
-      return false;
+      return Isa::kBaseline;
     case RasterKernel::kAvx2:
       if (!raster_avx2_available())
         throw Error("rasterizer: the AVX2 kernel was asked for, but this CPU has no AVX2");
-      return true;
+      return Isa::kAvx2;
+    case RasterKernel::kAvx512:
+      if (!raster_avx512_available())
+        throw Error("rasterizer: the AVX-512 kernel was asked for, but this CPU has no AVX-512");
+      return Isa::kAvx512;
     default: {
-      static const bool env_off = std::getenv("KS_RASTER_NO_AVX2") != nullptr;
-      return raster_avx2_available() && !env_off;
+      static const bool no512 = std::getenv("KS_RASTER_NO_AVX512") != nullptr;
+      static const bool no2 = std::getenv("KS_RASTER_NO_AVX2") != nullptr;
+      if (raster_avx512_available() && !no512) return Isa::kAvx512;
+      if (raster_avx2_available() && !no2) return Isa::kAvx2;
+      return Isa::kBaseline;
     }
   }
 }
@@ -58,32 +75,38 @@ void rasterize_forward(const GaussiansT<T>& g, const Camera& camera, const Raste
   const size_t N = g.size();
   shape_image(out.color, W, H, 3);
   shape_image(out.alpha, W, H, 1);
-  shape_image(out.depth, W, H, 1);
+  out.image_only = s.image_only;
+  if (s.image_only)
+    out.depth = ImageT<T>();
+  else
+    shape_image(out.depth, W, H, 1);
   out.radii.resize(N);
   out.means2d.resize(2 * N);
   out.conics.resize(3 * N);
-  out.colors.resize(3 * N);
   out.depths.resize(N);
   out.cov3d.resize(6 * N);
   out.sh_clamped.resize(3 * N);
   out.opacities.resize(N);
-  out.rects.resize(4 * N);
-  out.final_T.resize(size_t(W) * H);
-  out.n_contrib.resize(size_t(W) * H);
+  out.records.resize(size_t(raster::kRec) * N);
+  out.final_T.resize(s.image_only ? 0 : size_t(W) * H);
+  out.n_contrib.resize(s.image_only ? 0 : size_t(W) * H);
   const int tiles_x = (W + kTS - 1) / kTS, tiles_y = (H + kTS - 1) / kTS;
   out.tile_ranges.resize(2 * size_t(tiles_x) * tiles_y);
-  const bool avx2 = std::is_same_v<T, float> && use_avx2(s);
+  const Isa isa = std::is_same_v<T, float> ? choose_isa(s) : Isa::kBaseline;
 
   PhaseTimer timer;
   // 1. Cull + project + colour, one parallel pass.
-  preprocess_forward(g, cam, s, out);
+  if constexpr (std::is_same_v<T, float>)
+    preprocess_forward_simd(g, cam, s, isa, out);
+  else
+    preprocess_forward(g, cam, s, out);
   timer.mark("project");
   // 2-4. Depth order, render records, tile lists.
   sort_and_bin(out, tiles_x, tiles_y);
   // 5. Compositing, front to back, one tile per task.
   PhaseTimer timer2;
   const T bg[3] = {T(s.background[0]), T(s.background[1]), T(s.background[2])};
-  composite_tiles(out, tiles_x, tiles_y, bg, avx2);
+  composite_tiles(out, tiles_x, tiles_y, bg, isa);
   timer2.mark("composite");
 }
 
@@ -96,6 +119,8 @@ void rasterize_backward(const GaussiansT<T>& g, const Camera& camera, const Rast
   const CameraT<T> cam(camera);
   const int W = cam.W, H = cam.H;
   const size_t N = g.size();
+  if (fwd.image_only)
+    throw Error("rasterize_backward: the forward result is image_only (no backward state)");
   if (fwd.radii.size() != N || fwd.color.width != W || fwd.color.height != H)
     throw Error("rasterize_backward: forward result does not match the Gaussians / camera");
   if (dLdc.width != W || dLdc.height != H || dLdc.channels != 3)
@@ -105,10 +130,10 @@ void rasterize_backward(const GaussiansT<T>& g, const Camera& camera, const Rast
     throw Error("rasterize_backward: dL/dalpha must be W x H x 1 or empty");
   const int tiles_x = (W + kTS - 1) / kTS, tiles_y = (H + kTS - 1) / kTS;
   const int threads = omp_get_max_threads();
-  const bool avx2 = std::is_same_v<T, float> && use_avx2(s);
+  const Isa isa = std::is_same_v<T, float> ? choose_isa(s) : Isa::kBaseline;
   const T bg[3] = {T(s.background[0]), T(s.background[1]), T(s.background[2])};
   PhaseTimer timer;
-  backward_tiles(fwd, dLdc, dLda, bg, tiles_x, tiles_y, avx2, threads, gr);
+  backward_tiles(fwd, dLdc, dLda, bg, tiles_x, tiles_y, isa, threads, gr);
   timer.mark("backward tiles");
   preprocess_backward(g, cam, fwd, threads, gr);
   timer.mark("backward per-Gaussian");

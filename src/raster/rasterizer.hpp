@@ -20,43 +20,50 @@ namespace ks {
 
 constexpr int kTileSize = 16;
 
-// The CPU tile kernels: 4-pixel SSE2 chunks (the portable baseline) or 8-pixel AVX2 chunks.
-// kAuto takes AVX2 when the CPU has it (and KS_RASTER_NO_AVX2 is not set). Both give the same
-// images; gradients agree up to the order of their float sums. The double instantiation has
-// one kernel (this setting is ignored there).
-enum class RasterKernel { kAuto, kBaseline, kAvx2 };
+// The CPU tile kernels: 4-pixel SSE2 chunks (the portable baseline), 8-pixel AVX2 chunks, or
+// AVX-512 with a whole 16-pixel tile row per vector. kAuto takes the widest the CPU has
+// (KS_RASTER_NO_AVX512 / KS_RASTER_NO_AVX2 set in the environment skip one). All give the same
+// images; gradients agree up to the order of their float sums. The double instantiation has one
+// kernel (this setting is ignored there).
+enum class RasterKernel { kAuto, kBaseline, kAvx2, kAvx512 };
 
 struct RasterSettings {
   float background[3] = {0.f, 0.f, 0.f};
   float near_plane = 0.01f;
   float low_pass = 0.3f;  // added to the 2D covariance diagonal (pixels^2)
   RasterKernel kernel = RasterKernel::kAuto;
+  // Colour and alpha only (playback, evaluation): no expected depth and none of the per-pixel
+  // state the backward pass needs, which the compositing then neither accumulates nor writes
+  // (depth, final_T and n_contrib come back empty; rasterize_backward refuses such a result).
+  bool image_only = false;
 };
 
-// Whether this CPU can run RasterKernel::kAvx2.
+// Whether this CPU can run RasterKernel::kAvx2 / kAvx512.
 bool raster_avx2_available();
+bool raster_avx512_available();
 
 // Everything the forward pass produces; also the state the backward pass reuses.
 // Reuse one RasterResult across frames: buffers are resized, not reallocated.
 template <class T>
 struct RasterResultT {
-  ImageT<T> color;  // W x H x 3
-  ImageT<T> alpha;  // W x H x 1
-  ImageT<T> depth;  // W x H x 1, expected depth (sum of w_i z_i), not normalised by alpha
+  ImageT<T> color;          // W x H x 3
+  ImageT<T> alpha;          // W x H x 1
+  ImageT<T> depth;          // W x H x 1, expected depth (sum of w_i z_i), not normalised by alpha;
+                            // empty after an image_only forward
+  bool image_only = false;  // the settings' image_only of the forward that filled this
   // Per Gaussian (N).
   std::vector<int> radii;  // pixel radius ceil(3 sigma_max), 0 = not visible (culled)
   std::vector<T> means2d;  // 2N, pixel coordinates
   // Internal state for backward (projected conics, colours, tile lists, per-pixel counts).
   std::vector<T> conics;            // 3N (a, b, c) of the inverse 2D covariance
-  std::vector<T> colors;            // 3N evaluated SH colours
   std::vector<T> depths;            // N camera-space z
   std::vector<T> cov3d;             // 6N (xx, xy, xz, yy, yz, zz)
   std::vector<uint8_t> sh_clamped;  // 3N
   std::vector<T> opacities;         // N activated opacity
-  std::vector<int> rects;           // 4N pixel bounding box x0, x1, y0, y1 (inclusive)
   // Visible Gaussians in depth order: scratch_ids[rank] = Gaussian id, packed[16 rank ..] =
-  // render record (mean2d, conic, opacity, rgb, depth, pixel rect).
-  std::vector<T> packed;
+  // render record (mean2d, conic, opacity, SH colour, depth, pixel rect x0 x1 y0 y1 inclusive);
+  // records: the same by id as the projection writes them (16 N, valid where radii > 0).
+  std::vector<T> packed, records;
   std::vector<uint32_t> point_list;   // depth ranks (see packed), tile-major then depth
   std::vector<uint32_t> tile_ranges;  // 2 * tiles: [start, end) into point_list
   std::vector<T> final_T;             // per pixel

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cstdint>
+#include <type_traits>
 
 namespace ks::sh {
 
@@ -16,29 +17,39 @@ constexpr double kC3[7] = {-0.5900435899266435, 2.890611442640554,   -0.45704579
                            0.3731763325901154,  -0.4570457994644658, 1.445305721320277,
                            -0.5900435899266435};
 
-// b[k] for k < (deg+1)^2.
+// A constant in T's precision; for a GCC vector type T (basis over several directions at once,
+// raster/preprocess_simd.cpp) its float lanes' (a scalar times a vector is lane-wise).
+template <class T>
+constexpr auto sh_constant(double v) {
+  if constexpr (std::is_floating_point_v<T>)
+    return T(v);
+  else
+    return float(v);
+}
+
+// b[k] for k < (deg+1)^2 (T a float, double or float vector type).
 template <class T>
 inline void basis(int deg, T x, T y, T z, T* b) {
-  b[0] = T(kC0);
+  b[0] = T{} + sh_constant<T>(kC0);
   if (deg < 1) return;
-  b[1] = T(-kC1) * y;
-  b[2] = T(kC1) * z;
-  b[3] = T(-kC1) * x;
+  b[1] = sh_constant<T>(-kC1) * y;
+  b[2] = sh_constant<T>(kC1) * z;
+  b[3] = sh_constant<T>(-kC1) * x;
   if (deg < 2) return;
   const T xx = x * x, yy = y * y, zz = z * z;
-  b[4] = T(kC2[0]) * x * y;
-  b[5] = T(kC2[1]) * y * z;
-  b[6] = T(kC2[2]) * (2 * zz - xx - yy);
-  b[7] = T(kC2[3]) * x * z;
-  b[8] = T(kC2[4]) * (xx - yy);
+  b[4] = sh_constant<T>(kC2[0]) * x * y;
+  b[5] = sh_constant<T>(kC2[1]) * y * z;
+  b[6] = sh_constant<T>(kC2[2]) * (2 * zz - xx - yy);
+  b[7] = sh_constant<T>(kC2[3]) * x * z;
+  b[8] = sh_constant<T>(kC2[4]) * (xx - yy);
   if (deg < 3) return;
-  b[9] = T(kC3[0]) * y * (3 * xx - yy);
-  b[10] = T(kC3[1]) * x * y * z;
-  b[11] = T(kC3[2]) * y * (4 * zz - xx - yy);
-  b[12] = T(kC3[3]) * z * (2 * zz - 3 * xx - 3 * yy);
-  b[13] = T(kC3[4]) * x * (4 * zz - xx - yy);
-  b[14] = T(kC3[5]) * z * (xx - yy);
-  b[15] = T(kC3[6]) * x * (xx - 3 * yy);
+  b[9] = sh_constant<T>(kC3[0]) * y * (3 * xx - yy);
+  b[10] = sh_constant<T>(kC3[1]) * x * y * z;
+  b[11] = sh_constant<T>(kC3[2]) * y * (4 * zz - xx - yy);
+  b[12] = sh_constant<T>(kC3[3]) * z * (2 * zz - 3 * xx - 3 * yy);
+  b[13] = sh_constant<T>(kC3[4]) * x * (4 * zz - xx - yy);
+  b[14] = sh_constant<T>(kC3[5]) * z * (xx - yy);
+  b[15] = sh_constant<T>(kC3[6]) * x * (xx - 3 * yy);
 }
 
 // Partial derivatives of b[k] with respect to x, y, z (treated as independent).

@@ -138,7 +138,7 @@ __attribute__((target("avx2"), flatten)) void backward_tile_avx2(const Res& fwd,
 
 template <class T>
 void backward_tiles(const RasterResultT<T>& fwd, const ImageT<T>& dLdc, const ImageT<T>& dLda,
-                    const T* bg, int tiles_x, int tiles_y, bool avx2, int threads,
+                    const T* bg, int tiles_x, int tiles_y, Isa isa, int threads,
                     RasterGradsT<T>& gr) {
   const int W = fwd.color.width, H = fwd.color.height;
   const int ntiles = tiles_x * tiles_y;
@@ -158,7 +158,13 @@ void backward_tiles(const RasterResultT<T>& fwd, const ImageT<T>& dLdc, const Im
 #pragma omp for schedule(dynamic, 2)
     for (int tile = 0; tile < ntiles; ++tile) {
       if constexpr (std::is_same_v<T, float>) {
-        if (avx2) {
+#if defined(__x86_64__)
+        if (isa == Isa::kAvx512) {
+          backward_tile_avx512(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
+          continue;
+        }
+#endif
+        if (isa != Isa::kBaseline) {
           backward_tile_avx2(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
           continue;
         }
@@ -169,10 +175,10 @@ void backward_tiles(const RasterResultT<T>& fwd, const ImageT<T>& dLdc, const Im
 }
 
 template void backward_tiles(const RasterResultT<float>&, const ImageT<float>&,
-                             const ImageT<float>&, const float*, int, int, bool, int,
+                             const ImageT<float>&, const float*, int, int, Isa, int,
                              RasterGradsT<float>&);
 template void backward_tiles(const RasterResultT<double>&, const ImageT<double>&,
-                             const ImageT<double>&, const double*, int, int, bool, int,
+                             const ImageT<double>&, const double*, int, int, Isa, int,
                              RasterGradsT<double>&);
 
 }  // namespace ks::raster

@@ -13,8 +13,9 @@ namespace ks::raster {
 
 namespace {
 
-// One tile of the forward pass; CW pixels per SIMD chunk.
-template <int CW, class T, class Res>
+// One tile of the forward pass; CW pixels per SIMD chunk. kFull: also the expected depth and the
+// backward's state (last contributor, final transmittance).
+template <int CW, bool kFull, class T, class Res>
 [[gnu::always_inline]] inline void composite_tile(Res& out, int tile, int tiles_x, int W, int H,
                                                   const T* bg) {
   constexpr int kCPR_ = kTS / CW, kChunks_ = kTS * kCPR_;
@@ -80,9 +81,9 @@ template <int CW, class T, class Res>
           vstore(C0 + p0, vload<V>(C0 + p0) + w * cr);
           vstore(C1 + p0, vload<V>(C1 + p0) + w * cg);
           vstore(C2 + p0, vload<V>(C2 + p0) + w * cb);
-          vstore(Dp + p0, vload<V>(Dp + p0) + w * zz);
+          if constexpr (kFull) vstore(Dp + p0, vload<V>(Dp + p0) + w * zz);
           vstore(Tt + p0, con ? Tn : (term ? -Tp : Tp));
-          vstore(last + p0, (con & SI(idx1)) | (~con & vload<VI>(last + p0)));
+          if constexpr (kFull) vstore(last + p0, (con & SI(idx1)) | (~con & vload<VI>(last + p0)));
           const int nterm = SV::count(term);
           if (nterm) {
             chunk_live[cq] -= nterm;
@@ -92,46 +93,47 @@ template <int CW, class T, class Res>
       }
     }
   }
-  for (int r = 0; r < kTS && oy + r < H; ++r)
-    for (int c = 0; c < kTS && ox + c < W; ++c) {
-      const int p = r * kTS + c;
-      const size_t pix = size_t(oy + r) * W + ox + c;
-      const T Tf = std::abs(Tt[p]);
-      out.color.data[3 * pix] = C0[p] + Tf * bg[0];
-      out.color.data[3 * pix + 1] = C1[p] + Tf * bg[1];
-      out.color.data[3 * pix + 2] = C2[p] + Tf * bg[2];
-      out.alpha.data[pix] = 1 - Tf;
-      out.depth.data[pix] = Dp[p];
-      out.final_T[pix] = Tf;
-      out.n_contrib[pix] = uint32_t(last[p]);
-    }
+  store_tile(out, ox, oy, bg, Tt, C0, C1, C2, Dp, last, kFull);
 }
 
-template <class Res>
+template <bool kFull, class Res>
 __attribute__((target("avx2"), flatten)) void composite_tile_avx2(Res& out, int tile, int tiles_x,
                                                                   int W, int H, const float* bg) {
-  composite_tile<8, float>(out, tile, tiles_x, W, H, bg);
+  composite_tile<8, kFull, float>(out, tile, tiles_x, W, H, bg);
 }
 
 }  // namespace
 
 template <class T>
-void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* bg, bool avx2) {
+void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* bg, Isa isa) {
   const int W = out.color.width, H = out.color.height;
   const int ntiles = tiles_x * tiles_y;
+  const bool full = !out.image_only;
 #pragma omp parallel for schedule(dynamic, 2)
   for (int tile = 0; tile < ntiles; ++tile) {
     if constexpr (std::is_same_v<T, float>) {
-      if (avx2) {
-        composite_tile_avx2(out, tile, tiles_x, W, H, bg);
+#if defined(__x86_64__)
+      if (isa == Isa::kAvx512) {
+        composite_tile_avx512(out, tile, tiles_x, W, H, bg, full);
+        continue;
+      }
+#endif
+      if (isa != Isa::kBaseline) {
+        if (full)
+          composite_tile_avx2<true>(out, tile, tiles_x, W, H, bg);
+        else
+          composite_tile_avx2<false>(out, tile, tiles_x, W, H, bg);
         continue;
       }
     }
-    composite_tile<kCW, T>(out, tile, tiles_x, W, H, bg);
+    if (full)
+      composite_tile<kCW, true, T>(out, tile, tiles_x, W, H, bg);
+    else
+      composite_tile<kCW, false, T>(out, tile, tiles_x, W, H, bg);
   }
 }
 
-template void composite_tiles(RasterResultT<float>&, int, int, const float*, bool);
-template void composite_tiles(RasterResultT<double>&, int, int, const double*, bool);
+template void composite_tiles(RasterResultT<float>&, int, int, const float*, Isa);
+template void composite_tiles(RasterResultT<double>&, int, int, const double*, Isa);
 
 }  // namespace ks::raster

@@ -114,14 +114,18 @@ TEST(Raster, PixelCentreConvention) {
 
 // The baseline (SSE2) and AVX2 tile kernels in one process: the same images, bit for bit, and the
 // same gradients up to the order of their float sums.
-TEST(Raster, BaselineAndAvx2KernelsAgree) {
-  if (!raster_avx2_available()) GTEST_SKIP() << "this CPU has no AVX2";
+// The wider kernels against the baseline on scenes with the 0.99 clamp, early termination,
+// tiny and large Gaussians, and an image whose edges cut tiles: the same images bit for bit,
+// the same gradients up to the order of float sums.
+void expect_kernel_agrees(RasterKernel kernel, unsigned seed, double scale_min, double scale_max,
+                          int w, int h) {
   SceneOptions o;
   o.n = 300;
   o.sh_degree = 3;
   o.opacity_max = 0.999;
-  const Gaussians g = random_scene(o, 21);
-  const Camera cam = test_camera(83, 61, 0.45, 0.55);
+  o.scale_min = scale_min, o.scale_max = scale_max;
+  const Gaussians g = random_scene(o, seed);
+  const Camera cam = test_camera(w, h, 0.45, 0.55);
   RasterSettings s;
   s.background[0] = 0.3f;
   RasterResult r[2];
@@ -132,7 +136,7 @@ TEST(Raster, BaselineAndAvx2KernelsAgree) {
   for (float& v : dc.data) v = U(rng);
   for (float& v : da.data) v = U(rng);
   for (int k = 0; k < 2; ++k) {
-    s.kernel = k == 0 ? RasterKernel::kBaseline : RasterKernel::kAvx2;
+    s.kernel = k == 0 ? RasterKernel::kBaseline : kernel;
     rasterize_forward(g, cam, s, r[k]);
     rasterize_backward(g, cam, s, r[k], dc, da, gr[k]);
   }
@@ -140,6 +144,7 @@ TEST(Raster, BaselineAndAvx2KernelsAgree) {
   EXPECT_EQ(r[0].alpha.data, r[1].alpha.data);
   EXPECT_EQ(r[0].depth.data, r[1].depth.data);
   EXPECT_EQ(r[0].n_contrib, r[1].n_contrib);
+  EXPECT_EQ(r[0].final_T, r[1].final_T);
   auto close = [](const std::vector<float>& a, const std::vector<float>& b, const char* name) {
     ASSERT_EQ(a.size(), b.size()) << name;
     float scale = 0;
@@ -152,6 +157,49 @@ TEST(Raster, BaselineAndAvx2KernelsAgree) {
   close(gr[0].quats, gr[1].quats, "quats");
   close(gr[0].opacity_logits, gr[1].opacity_logits, "opacity_logits");
   close(gr[0].sh, gr[1].sh, "sh");
+}
+
+TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
+  SceneOptions o;
+  o.n = 300;
+  o.sh_degree = 3;
+  o.opacity_max = 0.999;
+  const Gaussians g = random_scene(o, 31);
+  const Camera cam = test_camera(70, 90, 0.45, 0.55);
+  for (const RasterKernel k : {RasterKernel::kBaseline, RasterKernel::kAuto}) {
+    RasterSettings s;
+    s.kernel = k;
+    RasterResult full, img;
+    rasterize_forward(g, cam, s, full);
+    s.image_only = true;
+    rasterize_forward(g, cam, s, img);
+    EXPECT_EQ(img.color.data, full.color.data);
+    EXPECT_EQ(img.alpha.data, full.alpha.data);
+    EXPECT_TRUE(img.depth.data.empty());
+    EXPECT_TRUE(img.final_T.empty());
+    EXPECT_TRUE(img.n_contrib.empty());
+    Image dc(cam.width, cam.height, 3);
+    RasterGrads gr;
+    EXPECT_THROW(rasterize_backward(g, cam, s, img, dc, Image(), gr), Error);
+    // The same buffers serve a full forward again.
+    s.image_only = false;
+    rasterize_forward(g, cam, s, img);
+    EXPECT_EQ(img.depth.data, full.depth.data);
+    EXPECT_EQ(img.n_contrib, full.n_contrib);
+  }
+}
+
+TEST(Raster, BaselineAndAvx2KernelsAgree) {
+  if (!raster_avx2_available()) GTEST_SKIP() << "this CPU has no AVX2";
+  expect_kernel_agrees(RasterKernel::kAvx2, 21, 0.02, 0.08, 83, 61);
+  expect_kernel_agrees(RasterKernel::kAvx2, 22, 0.002, 0.3, 97, 130);
+}
+
+TEST(Raster, BaselineAndAvx512KernelsAgree) {
+  if (!raster_avx512_available()) GTEST_SKIP() << "this CPU has no AVX-512";
+  expect_kernel_agrees(RasterKernel::kAvx512, 21, 0.02, 0.08, 83, 61);
+  expect_kernel_agrees(RasterKernel::kAvx512, 22, 0.002, 0.3, 97, 130);
+  expect_kernel_agrees(RasterKernel::kAvx512, 23, 0.01, 0.05, 200, 150);
 }
 
 // ---- gradients -----------------------------------------------------------------------------
