@@ -1,7 +1,8 @@
 // The rasterizer's forward projection for float, CW Gaussians at a time (the same steps as
-// preprocess.cpp's per-Gaussian loop, which stays the double path of the tests): SSE2 blocks of 4
-// on the portable build, AVX2 blocks of 8 chosen at run time. Both widths run the same
-// operations in the same order (no contraction: the AVX2 target has no FMA), so every kernel
+// preprocess.cpp's per-Gaussian loop, which stays the double path of the tests), and beside it
+// its backward, the per-Gaussian chain rule (projection.hpp's pairs, the same order of steps):
+// SSE2 blocks of 4 on the portable build, AVX2 blocks of 8 chosen at run time. Both widths run the
+// same operations in the same order (no contraction: the AVX2 target has no FMA), so every kernel
 // choice renders the same images; against the per-Gaussian Eigen code the results agree to float
 // rounding (the exponentials are the tile kernels' polynomial, the order of sums differs).
 #pragma GCC diagnostic ignored "-Wpsabi"
@@ -148,6 +149,181 @@ template <int CW>
   }
 }
 
+// The chain rule of one block of CW Gaussians starting at i0 (n <= CW real), from the summed
+// screen-space gradients to the raw parameters (preprocess.cpp's preprocess_backward, lane-wise).
+template <int CW>
+[[gnu::always_inline]] inline void backward_block(const Gaussians& g, const CameraT<float>& cam,
+                                                  const RasterResultT<float>& fwd, int threads,
+                                                  size_t i0, int n, RasterGradsT<float>& gr) {
+  using L = Lanes<CW>;
+  using V = typename L::V;
+  const int deg = g.sh_degree, K = g.coeffs();
+  const size_t N = g.size(), stride = size_t(kNG) * N;
+  // Screen-space gradients summed over the threads' buffers (in thread order, as the scalar
+  // loop); the block's parameters and forward state (padding lanes repeat the first Gaussian).
+  V gs[kNG];
+  for (int q = 0; q < kNG; ++q) gs[q] = V{};
+  V mx, my, mz, qw, qx, qy, qz, l0, l1, l2, op, S[6], cn[3], keep[3];
+  int live = 0;
+  for (int l = 0; l < CW; ++l) {
+    const size_t i = i0 + size_t(l < n ? l : 0);
+    for (int th = 0; th < threads; ++th) {
+      const float* a = gr.scratch.data() + size_t(th) * stride + size_t(kNG) * i;
+      for (int q = 0; q < kNG; ++q) gs[q][l] += a[q];
+    }
+    mx[l] = g.means[3 * i], my[l] = g.means[3 * i + 1], mz[l] = g.means[3 * i + 2];
+    qw[l] = g.quats[4 * i], qx[l] = g.quats[4 * i + 1], qy[l] = g.quats[4 * i + 2],
+    qz[l] = g.quats[4 * i + 3];
+    l0[l] = g.log_scales[3 * i], l1[l] = g.log_scales[3 * i + 1], l2[l] = g.log_scales[3 * i + 2];
+    op[l] = fwd.opacities[i];
+    for (int q = 0; q < 6; ++q) S[q][l] = fwd.cov3d[6 * i + q];
+    for (int q = 0; q < 3; ++q) {
+      cn[q][l] = fwd.conics[3 * i + q];
+      keep[q][l] = fwd.sh_clamped[3 * i + q] ? 0.0f : 1.0f;
+    }
+    live += l < n && fwd.radii[i] != 0;
+  }
+  // Every output starts at zero; the 2D means take their screen gradient as it is.
+  for (int l = 0; l < n; ++l) {
+    const size_t i = i0 + size_t(l);
+    for (int q = 0; q < 3; ++q) gr.means[3 * i + q] = 0, gr.log_scales[3 * i + q] = 0;
+    for (int q = 0; q < 4; ++q) gr.quats[4 * i + q] = 0;
+    gr.opacity_logits[i] = 0;
+    gr.means2d[2 * i] = gs[0][l];
+    gr.means2d[2 * i + 1] = gs[1][l];
+  }
+  if (live == 0) {
+    std::fill(gr.sh.begin() + ptrdiff_t(i0 * K * 3), gr.sh.begin() + ptrdiff_t((i0 + n) * K * 3),
+              0.0f);
+    return;
+  }
+  const auto& R = cam.R;
+  const V dlogit = gs[5] * op * (1.0f - op);
+  // Colour -> SH coefficients and the view direction (sh_to_color_backward).
+  const V dx = mx - float(cam.centre[0]), dy = my - float(cam.centre[1]),
+          dz = mz - float(cam.centre[2]);
+  const V dist = L::sqrt(dx * dx + dy * dy + dz * dz);
+  const auto has = dist > 0.0f;
+  const V ddx = L::sel(has, dx / dist, L::splat(0.f)), ddy = L::sel(has, dy / dist, L::splat(0.f)),
+          ddz = L::sel(has, dz / dist, L::splat(1.f));
+  const V gc0 = keep[0] * gs[6], gc1 = keep[1] * gs[7], gc2 = keep[2] * gs[8];
+  V b[16];
+  sh::basis<V>(deg, ddx, ddy, ddz, b);
+  for (int l = 0; l < n; ++l) {
+    float* d = &gr.sh[(i0 + size_t(l)) * K * 3];
+    if (fwd.radii[i0 + size_t(l)] == 0) {
+      std::fill(d, d + 3 * K, 0.0f);
+      continue;
+    }
+    for (int k = 0; k < K; ++k)
+      d[3 * k] = b[k][l] * gc0[l], d[3 * k + 1] = b[k][l] * gc1[l], d[3 * k + 2] = b[k][l] * gc2[l];
+  }
+  V gmx = V{}, gmy = V{}, gmz = V{};
+  if (deg > 0) {
+    V bx[16], by[16], bz[16];
+    sh::basis_grad<V>(deg, ddx, ddy, ddz, bx, by, bz);
+    V gdx = V{}, gdy = V{}, gdz = V{};
+    for (int k = 1; k < K; ++k) {
+      V c0, c1, c2;
+      for (int l = 0; l < CW; ++l) {
+        const float* c = &g.sh[((i0 + size_t(l < n ? l : 0)) * K + k) * 3];
+        c0[l] = c[0], c1[l] = c[1], c2[l] = c[2];
+      }
+      const V w = c0 * gc0 + c1 * gc1 + c2 * gc2;
+      gdx += w * bx[k], gdy += w * by[k], gdz += w * bz[k];
+    }
+    const V dd = ddx * gdx + ddy * gdy + ddz * gdz;
+    gmx = L::sel(has, (gdx - ddx * dd) / dist, V{});
+    gmy = L::sel(has, (gdy - ddy * dd) / dist, V{});
+    gmz = L::sel(has, (gdz - ddz * dd) / dist, V{});
+  }
+  // Conic -> 2D covariance: dS2 = -Q G Q, G = [[da, db / 2], [db / 2, dc]].
+  const V ga = gs[2], gb = 0.5f * gs[3], gcc = gs[4];
+  const V QG00 = cn[0] * ga + cn[1] * gb, QG01 = cn[0] * gb + cn[1] * gcc;
+  const V QG10 = cn[1] * ga + cn[2] * gb, QG11 = cn[1] * gb + cn[2] * gcc;
+  const V D00 = -(QG00 * cn[0] + QG01 * cn[1]), D01 = -(QG00 * cn[1] + QG01 * cn[2]);
+  const V D10 = -(QG10 * cn[0] + QG11 * cn[1]), D11 = -(QG10 * cn[1] + QG11 * cn[2]);
+  // The camera-space mean; the 2D mean's gradient (project_mean_backward).
+  const V px = R(0, 0) * mx + R(0, 1) * my + R(0, 2) * mz + cam.t[0];
+  const V py = R(1, 0) * mx + R(1, 1) * my + R(1, 2) * mz + cam.t[1];
+  const V pz = R(2, 0) * mx + R(2, 1) * my + R(2, 2) * mz + cam.t[2];
+  const V iz = 1.0f / pz, iz2 = iz * iz;
+  V gpx = gs[0] * cam.fx * iz, gpy = gs[1] * cam.fy * iz;
+  V gpz = -gs[0] * cam.fx * px * iz2 - gs[1] * cam.fy * py * iz2;
+  // EWA (project_cov3d_backward): T = J R; dS3 = T^T dS2 T; GT = 2 dS2 T S3; GJ = GT R^T.
+  const V rx = px / pz, ry = py / pz;
+  const V ux = L::min(L::max(rx, L::splat(cam.lox)), L::splat(cam.hix));
+  const V uy = L::min(L::max(ry, L::splat(cam.loy)), L::splat(cam.hiy));
+  const V J00 = cam.fx * iz, J02 = -cam.fx * ux * iz, J11 = cam.fy * iz, J12 = -cam.fy * uy * iz;
+  V T0[3], T1[3];
+  for (int c = 0; c < 3; ++c)
+    T0[c] = J00 * R(0, c) + J02 * R(2, c), T1[c] = J11 * R(1, c) + J12 * R(2, c);
+  // dS2 T (2 x 3), then dS3 = T^T (dS2 T).
+  V E0[3], E1[3];
+  for (int c = 0; c < 3; ++c) E0[c] = D00 * T0[c] + D01 * T1[c], E1[c] = D10 * T0[c] + D11 * T1[c];
+  V dS[3][3];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) dS[r][c] = T0[r] * E0[c] + T1[r] * E1[c];
+  // GT = 2 (dS2 T) S3.
+  const V S3[3][3] = {{S[0], S[1], S[2]}, {S[1], S[3], S[4]}, {S[2], S[4], S[5]}};
+  V G0[3], G1[3];
+  for (int c = 0; c < 3; ++c) {
+    G0[c] = 2.0f * (E0[0] * S3[0][c] + E0[1] * S3[1][c] + E0[2] * S3[2][c]);
+    G1[c] = 2.0f * (E1[0] * S3[0][c] + E1[1] * S3[1][c] + E1[2] * S3[2][c]);
+  }
+  // GJ = GT R^T: only the entries the Jacobian has.
+  const V GJ00 = G0[0] * R(0, 0) + G0[1] * R(0, 1) + G0[2] * R(0, 2);
+  const V GJ02 = G0[0] * R(2, 0) + G0[1] * R(2, 1) + G0[2] * R(2, 2);
+  const V GJ11 = G1[0] * R(1, 0) + G1[1] * R(1, 1) + G1[2] * R(1, 2);
+  const V GJ12 = G1[0] * R(2, 0) + G1[1] * R(2, 1) + G1[2] * R(2, 2);
+  gpz += -GJ00 * cam.fx * iz2 - GJ11 * cam.fy * iz2;
+  gpz += GJ02 * cam.fx * ux * iz2 + GJ12 * cam.fy * uy * iz2;
+  const auto inx = (rx > cam.lox) & (rx < cam.hix), iny = (ry > cam.loy) & (ry < cam.hiy);
+  const V gux = L::sel(inx, -GJ02 * cam.fx * iz, V{}), guy = L::sel(iny, -GJ12 * cam.fy * iz, V{});
+  gpx += gux * iz, gpz -= gux * px * iz2;
+  gpy += guy * iz, gpz -= guy * py * iz2;
+  // World -> camera: dm += R^T dp.
+  gmx += R(0, 0) * gpx + R(1, 0) * gpy + R(2, 0) * gpz;
+  gmy += R(0, 1) * gpx + R(1, 1) * gpy + R(2, 1) * gpz;
+  gmz += R(0, 2) * gpx + R(1, 2) * gpy + R(2, 2) * gpz;
+  // 3D covariance -> scale and rotation (quat_scale_to_cov3d_backward).
+  const V qn = L::sqrt(qw * qw + qx * qx + qy * qy + qz * qz);
+  const V w = qw / qn, x = qx / qn, y = qy / qn, z = qz / qn;
+  const V sc[3] = {L::exp(l0), L::exp(l1), L::exp(l2)};
+  const V Rq[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},
+                      {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
+                      {2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)}};
+  V GR[3][3], dls[3];
+  for (int c = 0; c < 3; ++c) {
+    // GM(:, c) = 2 dS M(:, c), M(:, c) = Rq(:, c) sc[c].
+    V gm[3];
+    for (int r = 0; r < 3; ++r)
+      gm[r] = 2.0f * (dS[r][0] * Rq[0][c] + dS[r][1] * Rq[1][c] + dS[r][2] * Rq[2][c]) * sc[c];
+    for (int r = 0; r < 3; ++r) GR[r][c] = gm[r] * sc[c];
+    dls[c] = (gm[0] * Rq[0][c] + gm[1] * Rq[1][c] + gm[2] * Rq[2][c]) * sc[c];
+  }
+  const V gw = 2 * (-z * GR[0][1] + y * GR[0][2] + z * GR[1][0] - x * GR[1][2] - y * GR[2][0] +
+                    x * GR[2][1]);
+  const V gx = 2 * (y * GR[0][1] + z * GR[0][2] + y * GR[1][0] - 2 * x * GR[1][1] - w * GR[1][2] +
+                    z * GR[2][0] + w * GR[2][1] - 2 * x * GR[2][2]);
+  const V gy = 2 * (-2 * y * GR[0][0] + x * GR[0][1] + w * GR[0][2] + x * GR[1][0] + z * GR[1][2] -
+                    w * GR[2][0] + z * GR[2][1] - 2 * y * GR[2][2]);
+  const V gz = 2 * (-2 * z * GR[0][0] - w * GR[0][1] + x * GR[0][2] + w * GR[1][0] -
+                    2 * z * GR[1][1] + y * GR[1][2] + x * GR[2][0] + y * GR[2][1]);
+  const V dotq = w * gw + x * gx + y * gy + z * gz;
+  const V dqw = (gw - w * dotq) / qn, dqx = (gx - x * dotq) / qn, dqy = (gy - y * dotq) / qn,
+          dqz = (gz - z * dotq) / qn;
+  for (int l = 0; l < n; ++l) {
+    const size_t i = i0 + size_t(l);
+    if (fwd.radii[i] == 0) continue;
+    gr.opacity_logits[i] = dlogit[l];
+    gr.means[3 * i] = gmx[l], gr.means[3 * i + 1] = gmy[l], gr.means[3 * i + 2] = gmz[l];
+    for (int c = 0; c < 3; ++c) gr.log_scales[3 * i + c] = dls[c][l];
+    gr.quats[4 * i] = dqw[l], gr.quats[4 * i + 1] = dqx[l], gr.quats[4 * i + 2] = dqy[l],
+                 gr.quats[4 * i + 3] = dqz[l];
+  }
+}
+
 // Gaussians [b, e) in blocks of CW.
 template <int CW>
 [[gnu::always_inline]] inline void project_range(const Gaussians& g, const CameraT<float>& cam,
@@ -171,6 +347,28 @@ __attribute__((target("avx2"), flatten)) void project_range_avx2(const Gaussians
   project_range<8>(g, cam, s, b, e, out);
 }
 
+template <int CW>
+[[gnu::always_inline]] inline void backward_range(const Gaussians& g, const CameraT<float>& cam,
+                                                  const RasterResultT<float>& fwd, int threads,
+                                                  size_t b, size_t e, RasterGradsT<float>& gr) {
+  for (size_t i0 = b; i0 < e; i0 += CW)
+    backward_block<CW>(g, cam, fwd, threads, i0, int(std::min<size_t>(CW, e - i0)), gr);
+}
+
+void backward_range_sse2(const Gaussians& g, const CameraT<float>& cam,
+                         const RasterResultT<float>& fwd, int threads, size_t b, size_t e,
+                         RasterGradsT<float>& gr) {
+  backward_range<4>(g, cam, fwd, threads, b, e, gr);
+}
+
+__attribute__((target("avx2"), flatten)) void backward_range_avx2(const Gaussians& g,
+                                                                  const CameraT<float>& cam,
+                                                                  const RasterResultT<float>& fwd,
+                                                                  int threads, size_t b, size_t e,
+                                                                  RasterGradsT<float>& gr) {
+  backward_range<8>(g, cam, fwd, threads, b, e, gr);
+}
+
 }  // namespace
 
 void preprocess_forward_simd(const Gaussians& g, const CameraT<float>& cam, const RasterSettings& s,
@@ -185,6 +383,29 @@ void preprocess_forward_simd(const Gaussians& g, const CameraT<float>& cam, cons
       project_range_sse2(g, cam, s, b, e, out);
     else
       project_range_avx2(g, cam, s, b, e, out);
+  }
+}
+
+void preprocess_backward_simd(const GaussiansT<float>& g, const CameraT<float>& cam,
+                              const RasterResultT<float>& fwd, int threads, Isa isa,
+                              RasterGradsT<float>& gr) {
+  constexpr size_t kChunk = 512;
+  const size_t N = g.size();
+  const int K = g.coeffs();
+  gr.means.resize(3 * N);
+  gr.log_scales.resize(3 * N);
+  gr.quats.resize(4 * N);
+  gr.opacity_logits.resize(N);
+  gr.sh.resize(N * size_t(K) * 3);
+  gr.means2d.resize(2 * N);
+  const long chunks = long((N + kChunk - 1) / kChunk);
+#pragma omp parallel for schedule(static)
+  for (long c = 0; c < chunks; ++c) {
+    const size_t b = size_t(c) * kChunk, e = std::min(N, b + kChunk);
+    if (isa == Isa::kBaseline)
+      backward_range_sse2(g, cam, fwd, threads, b, e, gr);
+    else
+      backward_range_avx2(g, cam, fwd, threads, b, e, gr);
   }
 }
 

@@ -135,7 +135,10 @@ void rasterize_backward(const GaussiansT<T>& g, const Camera& camera, const Rast
   PhaseTimer timer;
   backward_tiles(fwd, dLdc, dLda, bg, tiles_x, tiles_y, isa, threads, gr);
   timer.mark("backward tiles");
-  preprocess_backward(g, cam, fwd, threads, gr);
+  if constexpr (std::is_same_v<T, float>)
+    preprocess_backward_simd(g, cam, fwd, threads, isa, gr);
+  else
+    preprocess_backward(g, cam, fwd, threads, gr);
   timer.mark("backward per-Gaussian");
 }
 

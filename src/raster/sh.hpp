@@ -52,33 +52,40 @@ inline void basis(int deg, T x, T y, T z, T* b) {
   b[15] = sh_constant<T>(kC3[6]) * x * (xx - 3 * yy);
 }
 
-// Partial derivatives of b[k] with respect to x, y, z (treated as independent).
+// Partial derivatives of b[k] with respect to x, y, z (treated as independent; T as for basis).
 template <class T>
 inline void basis_grad(int deg, T x, T y, T z, T* bx, T* by, T* bz) {
-  bx[0] = by[0] = bz[0] = 0;
+  const T zero = T{};
+  bx[0] = by[0] = bz[0] = zero;
   if (deg < 1) return;
-  const T c1 = T(kC1);
-  bx[1] = 0, by[1] = -c1, bz[1] = 0;
-  bx[2] = 0, by[2] = 0, bz[2] = c1;
-  bx[3] = -c1, by[3] = 0, bz[3] = 0;
+  const T c1 = zero + sh_constant<T>(kC1);
+  bx[1] = zero, by[1] = -c1, bz[1] = zero;
+  bx[2] = zero, by[2] = zero, bz[2] = c1;
+  bx[3] = -c1, by[3] = zero, bz[3] = zero;
   if (deg < 2) return;
   const T xx = x * x, yy = y * y, zz = z * z;
-  bx[4] = T(kC2[0]) * y, by[4] = T(kC2[0]) * x, bz[4] = 0;
-  bx[5] = 0, by[5] = T(kC2[1]) * z, bz[5] = T(kC2[1]) * y;
-  bx[6] = T(-2 * kC2[2]) * x, by[6] = T(-2 * kC2[2]) * y, bz[6] = T(4 * kC2[2]) * z;
-  bx[7] = T(kC2[3]) * z, by[7] = 0, bz[7] = T(kC2[3]) * x;
-  bx[8] = T(2 * kC2[4]) * x, by[8] = T(-2 * kC2[4]) * y, bz[8] = 0;
+  bx[4] = sh_constant<T>(kC2[0]) * y, by[4] = sh_constant<T>(kC2[0]) * x, bz[4] = zero;
+  bx[5] = zero, by[5] = sh_constant<T>(kC2[1]) * z, bz[5] = sh_constant<T>(kC2[1]) * y;
+  bx[6] = sh_constant<T>(-2 * kC2[2]) * x, by[6] = sh_constant<T>(-2 * kC2[2]) * y,
+  bz[6] = sh_constant<T>(4 * kC2[2]) * z;
+  bx[7] = sh_constant<T>(kC2[3]) * z, by[7] = zero, bz[7] = sh_constant<T>(kC2[3]) * x;
+  bx[8] = sh_constant<T>(2 * kC2[4]) * x, by[8] = sh_constant<T>(-2 * kC2[4]) * y, bz[8] = zero;
   if (deg < 3) return;
-  bx[9] = T(kC3[0]) * 6 * x * y, by[9] = T(kC3[0]) * (3 * xx - 3 * yy), bz[9] = 0;
-  bx[10] = T(kC3[1]) * y * z, by[10] = T(kC3[1]) * x * z, bz[10] = T(kC3[1]) * x * y;
-  bx[11] = T(kC3[2]) * (-2 * x * y), by[11] = T(kC3[2]) * (4 * zz - xx - 3 * yy),
-  bz[11] = T(kC3[2]) * 8 * y * z;
-  bx[12] = T(kC3[3]) * (-6 * x * z), by[12] = T(kC3[3]) * (-6 * y * z),
-  bz[12] = T(kC3[3]) * (6 * zz - 3 * xx - 3 * yy);
-  bx[13] = T(kC3[4]) * (4 * zz - 3 * xx - yy), by[13] = T(kC3[4]) * (-2 * x * y),
-  bz[13] = T(kC3[4]) * 8 * x * z;
-  bx[14] = T(kC3[5]) * 2 * x * z, by[14] = T(kC3[5]) * (-2 * y * z), bz[14] = T(kC3[5]) * (xx - yy);
-  bx[15] = T(kC3[6]) * (3 * xx - 3 * yy), by[15] = T(kC3[6]) * (-6 * x * y), bz[15] = 0;
+  bx[9] = sh_constant<T>(kC3[0]) * 6 * x * y, by[9] = sh_constant<T>(kC3[0]) * (3 * xx - 3 * yy),
+  bz[9] = zero;
+  bx[10] = sh_constant<T>(kC3[1]) * y * z, by[10] = sh_constant<T>(kC3[1]) * x * z,
+  bz[10] = sh_constant<T>(kC3[1]) * x * y;
+  bx[11] = sh_constant<T>(kC3[2]) * (-2 * x * y),
+  by[11] = sh_constant<T>(kC3[2]) * (4 * zz - xx - 3 * yy),
+  bz[11] = sh_constant<T>(kC3[2]) * 8 * y * z;
+  bx[12] = sh_constant<T>(kC3[3]) * (-6 * x * z), by[12] = sh_constant<T>(kC3[3]) * (-6 * y * z),
+  bz[12] = sh_constant<T>(kC3[3]) * (6 * zz - 3 * xx - 3 * yy);
+  bx[13] = sh_constant<T>(kC3[4]) * (4 * zz - 3 * xx - yy),
+  by[13] = sh_constant<T>(kC3[4]) * (-2 * x * y), bz[13] = sh_constant<T>(kC3[4]) * 8 * x * z;
+  bx[14] = sh_constant<T>(kC3[5]) * 2 * x * z, by[14] = sh_constant<T>(kC3[5]) * (-2 * y * z),
+  bz[14] = sh_constant<T>(kC3[5]) * (xx - yy);
+  bx[15] = sh_constant<T>(kC3[6]) * (3 * xx - 3 * yy),
+  by[15] = sh_constant<T>(kC3[6]) * (-6 * x * y), bz[15] = zero;
 }
 
 // The unit view direction from the camera centre to a mean (+Z when they coincide) and their
