@@ -80,8 +80,9 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
   feats_.resize(size_t(m) * F);
   triplane_forward(tp_, px, py, pz, m, feats_.data());
   Eigen::Map<const Mlp::Mat> X(feats_.data(), F, m);
-  mlp_forward(geo_, X, geo_cache_, Yg_);
-  mlp_forward(app_, X, app_cache_, Ya_);
+  // Both MLPs read the features, which stay in feats_ until the backward: no copy in the caches.
+  mlp_forward(geo_, X, geo_cache_, Yg_, false);
+  mlp_forward(app_, X, app_cache_, Ya_, false);
   // The outputs go to the last decode's Gaussians (a subset replaces only its own), which are
   // then copied out, so that what the caller's components add to `g` never accumulates.
   last_.sh_degree = 0;
@@ -148,8 +149,8 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
   }
   ggeo_.zero_like(geo_);
   gapp_.zero_like(app_);
-  mlp_backward(geo_, geo_cache_, dYg_, ggeo_, &dXg_);
-  mlp_backward(app_, app_cache_, dYa_, gapp_, &dXa_);
+  mlp_backward(geo_, geo_cache_, dYg_, ggeo_, &dXg_, feats_.data());
+  mlp_backward(app_, app_cache_, dYa_, gapp_, &dXa_, feats_.data());
   dXg_ += dXa_;
   // Only texels of the touched set are ever written (the points are the last decode's).
   if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_)

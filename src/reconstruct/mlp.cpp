@@ -7,6 +7,7 @@
 #include <random>
 #include <type_traits>
 
+#include "core/error.hpp"
 #include "reconstruct/mlp_kernels.hpp"
 
 namespace ks {
@@ -130,23 +131,28 @@ struct Packed {
   }
 };
 
-// Sizes the activation cache (act[0] = input copy, act[l] = layer l-1's output) and Y for a
-// forward pass over X's columns.
+// Sizes the activation cache (act[0] = input copy, empty when the input is not kept,
+// act[l] = layer l-1's output) and Y for a forward pass over X's columns.
 template <typename T>
 void size_forward_buffers(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>& X,
-                          MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y) {
+                          bool keep_input, MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y) {
   const size_t L = m.W.size();
+  if (!keep_input && X.outerStride() != X.rows())
+    throw Error("mlp_forward: an input the cache does not keep must be contiguous");
   cache.act.resize(L);
-  cache.act[0].resize(X.rows(), X.cols());
+  if (keep_input)
+    cache.act[0].resize(X.rows(), X.cols());
+  else
+    cache.act[0].resize(X.rows(), 0);
   for (size_t l = 1; l < L; ++l) cache.act[l].resize(m.W[l - 1].rows(), X.cols());
   Y.resize(m.W[L - 1].rows(), X.cols());
 }
 
 void forward_avx2(const MlpT<float>& m, const Eigen::Ref<const MlpT<float>::Mat>& X,
-                  MlpCacheT<float>& cache, MlpT<float>::Mat& Y) {
+                  bool keep_input, MlpCacheT<float>& cache, MlpT<float>::Mat& Y) {
   const size_t L = m.W.size();
   const Eigen::Index n = X.cols();
-  size_forward_buffers<float>(m, X, cache, Y);
+  size_forward_buffers<float>(m, X, keep_input, cache, Y);
   // Caller-thread scratch, reused across calls; the OpenMP workers use it through this reference
   // (naming the thread_local inside the parallel region would give each worker its own copy).
   static thread_local Packed packed;
@@ -158,19 +164,20 @@ void forward_avx2(const MlpT<float>& m, const Eigen::Ref<const MlpT<float>::Mat>
     const Eigen::Index c0 = bi * kBlock, c1 = std::min(c0 + kBlock, n);
     for (Eigen::Index s0 = c0; s0 < c1; s0 += kSub) {
       const Eigen::Index len = std::min(kSub, c1 - s0);
-      // The input is kept for the backward pass; copied here, a sub-block at a time, so the
-      // first layer reads it from L1.
-      if (X.outerStride() == X.rows())
+      // The input is kept for the backward pass (unless the caller keeps it); copied here, a
+      // sub-block at a time, so the first layer reads it from L1.
+      if (keep_input && X.outerStride() == X.rows())
         std::memcpy(cache.act[0].data() + s0 * X.rows(), X.data() + s0 * X.rows(),
                     sizeof(float) * size_t(len) * size_t(X.rows()));
-      else
+      else if (keep_input)
         cache.act[0].middleCols(s0, len) = X.middleCols(s0, len);
       for (size_t l = 0; l < L; ++l) {
         const int in = int(m.W[l].cols()), out = int(m.W[l].rows());
         const bool last = l + 1 == L;
         float* dst = last ? Y.data() + s0 * out : cache.act[l + 1].data() + s0 * out;
-        mk::gemm_cols_avx2(pk.data.data() + pk.w[l], out, in, cache.act[l].data() + s0 * in, in,
-                           int(len), dst, out, last ? mk::Epilogue::kBias : mk::Epilogue::kBiasRelu,
+        const float* src = l == 0 && !keep_input ? X.data() : cache.act[l].data();
+        mk::gemm_cols_avx2(pk.data.data() + pk.w[l], out, in, src + s0 * in, in, int(len), dst, out,
+                           last ? mk::Epilogue::kBias : mk::Epilogue::kBiasRelu,
                            pk.data.data() + pk.b[l], nullptr, 0);
       }
     }
@@ -179,7 +186,7 @@ void forward_avx2(const MlpT<float>& m, const Eigen::Ref<const MlpT<float>::Mat>
 
 void backward_avx2(const MlpT<float>& m, const MlpCacheT<float>& cache,
                    const Eigen::Ref<const MlpT<float>::Mat>& dY, MlpGradsT<float>& g,
-                   MlpT<float>::Mat* dX) {
+                   MlpT<float>::Mat* dX, const float* X0) {
   const int L = int(m.W.size());
   if (g.W.size() != m.W.size()) g.zero_like(m);
   const Eigen::Index n = dY.cols();
@@ -225,7 +232,7 @@ void backward_avx2(const MlpT<float>& m, const MlpCacheT<float>& cache,
       Eigen::Index ld = ldy;
       for (int l = L - 1; l >= 0; --l) {
         const int in = int(m.W[size_t(l)].cols()), out = int(m.W[size_t(l)].rows());
-        const float* act = cache.act[size_t(l)].data() + s0 * in;
+        const float* act = (l == 0 ? X0 : cache.act[size_t(l)].data()) + s0 * in;
         if (trans[size_t(l)]) {
           mk::outer_acc_avx2(act, in, in, delta, ld, out, len, pb + gw[size_t(l)], nullptr);
           mk::rowsum_acc_avx2(delta, ld, out, len, pb + gbo[size_t(l)]);
@@ -270,23 +277,26 @@ void backward_avx2(const MlpT<float>& m, const MlpCacheT<float>& cache,
 
 template <typename T>
 void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>& X,
-                 MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y) {
+                 MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y, bool keep_input) {
   if constexpr (std::is_same_v<T, float>) {
     if (mk::use_avx2()) {
-      forward_avx2(m, X, cache, Y);
+      forward_avx2(m, X, keep_input, cache, Y);
       return;
     }
   }
   const size_t L = m.W.size();
   const Eigen::Index n = X.cols();
-  size_forward_buffers<T>(m, X, cache, Y);
+  size_forward_buffers<T>(m, X, keep_input, cache, Y);
+  using Mat = typename MlpT<T>::Mat;
   const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (Eigen::Index bi = 0; bi < blocks; ++bi) {
     const Eigen::Index c0 = bi * kBlock, len = std::min(kBlock, n - c0);
-    cache.act[0].middleCols(c0, len) = X.middleCols(c0, len);
+    if (keep_input) cache.act[0].middleCols(c0, len) = X.middleCols(c0, len);
     for (size_t l = 0; l < L; ++l) {
-      auto in = cache.act[l].middleCols(c0, len);
+      const Eigen::Map<const Mat> A(l == 0 && !keep_input ? X.data() : cache.act[l].data(),
+                                    m.W[l].cols(), n);
+      const auto in = A.middleCols(c0, len);
       if (l + 1 < L) {
         auto out = cache.act[l + 1].middleCols(c0, len);
         out.noalias() = m.W[l] * in;
@@ -303,10 +313,16 @@ void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>
 template <typename T>
 void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
                   const Eigen::Ref<const typename MlpT<T>::Mat>& dY, MlpGradsT<T>& g,
-                  typename MlpT<T>::Mat* dX) {
+                  typename MlpT<T>::Mat* dX, const T* X) {
+  // The first layer's input: the forward's copy, or the caller's X when it kept none.
+  if (m.W.empty() || cache.act.size() != m.W.size())
+    throw Error("mlp_backward: the cache is not from a forward pass of this MLP");
+  if (!X && cache.act[0].cols() != dY.cols())
+    throw Error("mlp_backward: the forward kept no input and none was given");
+  const T* X0 = X ? X : cache.act[0].data();
   if constexpr (std::is_same_v<T, float>) {
     if (mk::use_avx2()) {
-      backward_avx2(m, cache, dY, g, dX);
+      backward_avx2(m, cache, dY, g, dX, X0);
       return;
     }
   }
@@ -346,7 +362,8 @@ void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
                      Eigen::OuterStride<>(dY.outerStride()));
     for (int l = L - 1; l >= 0; --l) {
       const auto& W = m.W[size_t(l)];
-      const auto in = cache.act[size_t(l)].middleCols(c0, len);
+      const Eigen::Map<const Mat> A(l == 0 ? X0 : cache.act[size_t(l)].data(), W.cols(), n);
+      const auto in = A.middleCols(c0, len);
       Eigen::Map<Mat>(pb + ow[size_t(l)], W.rows(), W.cols()).noalias() = delta * in.transpose();
       Eigen::Map<Vec> gb(pb + ob[size_t(l)], W.rows());
       gb.setZero();
@@ -382,14 +399,14 @@ template struct MlpT<double>;
 template struct MlpGradsT<float>;
 template struct MlpGradsT<double>;
 template void mlp_forward(const MlpT<float>&, const Eigen::Ref<const MlpT<float>::Mat>&,
-                          MlpCacheT<float>&, MlpT<float>::Mat&);
+                          MlpCacheT<float>&, MlpT<float>::Mat&, bool);
 template void mlp_forward(const MlpT<double>&, const Eigen::Ref<const MlpT<double>::Mat>&,
-                          MlpCacheT<double>&, MlpT<double>::Mat&);
+                          MlpCacheT<double>&, MlpT<double>::Mat&, bool);
 template void mlp_backward(const MlpT<float>&, const MlpCacheT<float>&,
                            const Eigen::Ref<const MlpT<float>::Mat>&, MlpGradsT<float>&,
-                           MlpT<float>::Mat*);
+                           MlpT<float>::Mat*, const float*);
 template void mlp_backward(const MlpT<double>&, const MlpCacheT<double>&,
                            const Eigen::Ref<const MlpT<double>::Mat>&, MlpGradsT<double>&,
-                           MlpT<double>::Mat*);
+                           MlpT<double>::Mat*, const double*);
 
 }  // namespace ks

@@ -33,7 +33,8 @@ struct MlpT {
 // Activations kept for the backward pass (reuse across iterations: no reallocation).
 template <typename T>
 struct MlpCacheT {
-  std::vector<typename MlpT<T>::Mat> act;  // act[0] = input, act[l] = output of layer l-1
+  // act[0] = the input (empty when the forward did not keep it), act[l] = output of layer l-1
+  std::vector<typename MlpT<T>::Mat> act;
   typename MlpT<T>::Mat delta, delta_next;
 };
 
@@ -45,16 +46,19 @@ struct MlpGradsT {
   void pack(std::vector<T>& out) const;
 };
 
-// Y = mlp(X); X: in x N (Map over caller memory), Y: out x N.
+// Y = mlp(X); X: in x N (Map over caller memory), Y: out x N. keep_input = false: the cache
+// keeps no copy of X (act[0] stays empty; X must then be contiguous), and mlp_backward must be
+// given the same X, unchanged (the decoder, whose two MLPs read one feature matrix it keeps).
 template <typename T>
 void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>& X,
-                 MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y);
+                 MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y, bool keep_input = true);
 // Given dL/dY (out x N): accumulates weight/bias gradients into g and, if dX != nullptr, writes
-// dL/dX (in x N).
+// dL/dX (in x N). X: the forward's input (in x N, contiguous) when the forward did not keep it,
+// else nullptr.
 template <typename T>
 void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
                   const Eigen::Ref<const typename MlpT<T>::Mat>& dY, MlpGradsT<T>& g,
-                  typename MlpT<T>::Mat* dX);
+                  typename MlpT<T>::Mat* dX, const T* X = nullptr);
 
 using Mlp = MlpT<float>;
 using MlpCache = MlpCacheT<float>;

@@ -10,6 +10,7 @@
 #include <random>
 #include <vector>
 
+#include "core/error.hpp"
 #include "reconstruct/mlp.hpp"
 #include "reconstruct/mlp_kernels.hpp"
 
@@ -135,6 +136,60 @@ TEST(MlpKernels, AccumulatesAndIsThreadCountIndependent) {
   }
   EXPECT_EQ(dX1, dX);
 #endif
+}
+
+// An input the cache does not keep (the decoder's features): the backward reads the caller's X
+// and everything comes out bit for bit as with the copy; without X the backward refuses, and a
+// strided X cannot be borrowed.
+TEST(MlpKernels, InputNotKeptGivesTheSameResults) {
+  for (mk::Path path : {mk::Path::kEigen, mk::Path::kAvx2}) {
+    if (path == mk::Path::kAvx2 && !mk::cpu_has_avx2_fma()) continue;
+    PathGuard guard(path);
+    Mlp m;
+    m.init({96, 32, 32, 9}, 5, 0.5f);
+    std::mt19937_64 rng(6);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    const int n = 3001;
+    Mlp::Mat X(96, n), dY(9, n);
+    for (int i = 0; i < X.size(); ++i) X.data()[i] = u(rng);
+    for (int i = 0; i < dY.size(); ++i) dY.data()[i] = u(rng);
+    MlpCache kept, borrowed;
+    Mlp::Mat Y1, Y2, dX1, dX2;
+    mlp_forward(m, X, kept, Y1);
+    mlp_forward(m, X, borrowed, Y2, false);
+    EXPECT_EQ(borrowed.act[0].cols(), 0);
+    EXPECT_EQ(Y1, Y2);
+    MlpGrads g1, g2;
+    g1.zero_like(m);
+    g2.zero_like(m);
+    mlp_backward(m, kept, dY, g1, &dX1);
+    mlp_backward(m, borrowed, dY, g2, &dX2, X.data());
+    EXPECT_EQ(dX1, dX2);
+    for (size_t l = 0; l < m.W.size(); ++l) {
+      EXPECT_EQ(g1.W[l], g2.W[l]);
+      EXPECT_EQ(g1.b[l], g2.b[l]);
+    }
+    EXPECT_THROW(mlp_backward(m, borrowed, dY, g2, &dX2), Error);
+    Mlp::Mat big(100, n);
+    big.setZero();
+    EXPECT_THROW(mlp_forward(m, big.topRows(96), borrowed, Y2, false), Error);
+  }
+  // The double path (the finite-difference tests' precision) the same way.
+  MlpT<double> md;
+  md.init({7, 5, 3}, 2, 0.5);
+  MlpT<double>::Mat X = MlpT<double>::Mat::Random(7, 50), dY = MlpT<double>::Mat::Random(3, 50);
+  MlpCacheT<double> kept, borrowed;
+  MlpT<double>::Mat Y1, Y2, dX1, dX2;
+  mlp_forward(md, X, kept, Y1);
+  mlp_forward(md, X, borrowed, Y2, false);
+  EXPECT_EQ(Y1, Y2);
+  MlpGradsT<double> g1, g2;
+  g1.zero_like(md);
+  g2.zero_like(md);
+  mlp_backward(md, kept, dY, g1, &dX1);
+  mlp_backward(md, borrowed, dY, g2, &dX2, X.data());
+  EXPECT_EQ(dX1, dX2);
+  EXPECT_EQ(g1.W[0], g2.W[0]);
 }
 
 // An empty batch gives empty outputs and leaves the gradients as they were (both paths).
