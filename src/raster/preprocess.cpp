@@ -82,12 +82,7 @@ void preprocess_backward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ra
   const int deg = g.sh_degree;
   const int K = g.coeffs();
   const size_t stride = size_t(kNG) * N;
-  gr.means.resize(3 * N);
-  gr.log_scales.resize(3 * N);
-  gr.quats.resize(4 * N);
-  gr.opacity_logits.resize(N);
-  gr.sh.resize(N * size_t(K) * 3);
-  gr.means2d.resize(2 * N);
+  size_param_grads(gr, N, K);
 #pragma omp parallel for schedule(static)
   for (size_t i = 0; i < N; ++i) {
     // Screen-space gradients summed over the threads' buffers: mean2d (2), conic (3), opacity,

@@ -31,6 +31,20 @@ struct Lanes : ks::Lanes<CW> {
   }
 };
 
+// The unit view directions from the camera centre to the block's means (+Z where they coincide,
+// has = 0 there) and their distances: sh::view_direction on lanes.
+template <class L, class V = typename L::V, class I = typename L::I>
+[[gnu::always_inline]] inline void view_directions(const CameraT<float>& cam, V mx, V my, V mz,
+                                                   V& ddx, V& ddy, V& ddz, V& dist, I& has) {
+  const V dx = mx - float(cam.centre[0]), dy = my - float(cam.centre[1]),
+          dz = mz - float(cam.centre[2]);
+  dist = L::sqrt(dx * dx + dy * dy + dz * dz);
+  has = dist > 0.0f;
+  ddx = L::sel(has, dx / dist, L::splat(0.f));
+  ddy = L::sel(has, dy / dist, L::splat(0.f));
+  ddz = L::sel(has, dz / dist, L::splat(1.f));
+}
+
 // One block of CW Gaussians starting at i0 (n <= CW of them real; the rest are padding).
 template <int CW>
 [[gnu::always_inline]] inline void project_block(const Gaussians& g, const CameraT<float>& cam,
@@ -104,12 +118,9 @@ template <int CW>
   const V lam1 = mid + L::sqrt(L::max(L::splat(0.1f), mid * mid - det));
   const V rad = L::ceil(3.0f * L::sqrt(lam1));
   // View direction and colour.
-  const V dx = mx - float(cam.centre[0]), dy = my - float(cam.centre[1]),
-          dz = mz - float(cam.centre[2]);
-  const V dist = L::sqrt(dx * dx + dy * dy + dz * dz);
-  const I has = dist > 0.0f;
-  const V ddx = L::sel(has, dx / dist, L::splat(0.f)), ddy = L::sel(has, dy / dist, L::splat(0.f)),
-          ddz = L::sel(has, dz / dist, L::splat(1.f));
+  V ddx, ddy, ddz, dist;
+  I has;
+  view_directions<L>(cam, mx, my, mz, ddx, ddy, ddz, dist, has);
   V basis[16];
   sh::basis<V>(deg, ddx, ddy, ddz, basis);
   V rgb[3];
@@ -200,12 +211,9 @@ template <int CW>
   const auto& R = cam.R;
   const V dlogit = gs[5] * op * (1.0f - op);
   // Colour -> SH coefficients and the view direction (sh_to_color_backward).
-  const V dx = mx - float(cam.centre[0]), dy = my - float(cam.centre[1]),
-          dz = mz - float(cam.centre[2]);
-  const V dist = L::sqrt(dx * dx + dy * dy + dz * dz);
-  const auto has = dist > 0.0f;
-  const V ddx = L::sel(has, dx / dist, L::splat(0.f)), ddy = L::sel(has, dy / dist, L::splat(0.f)),
-          ddz = L::sel(has, dz / dist, L::splat(1.f));
+  V ddx, ddy, ddz, dist;
+  typename L::I has;
+  view_directions<L>(cam, mx, my, mz, ddx, ddy, ddz, dist, has);
   const V gc0 = keep[0] * gs[6], gc1 = keep[1] * gs[7], gc2 = keep[2] * gs[8];
   V b[16];
   sh::basis<V>(deg, ddx, ddy, ddz, b);
@@ -391,13 +399,7 @@ void preprocess_backward_simd(const GaussiansT<float>& g, const CameraT<float>& 
                               RasterGradsT<float>& gr) {
   constexpr size_t kChunk = 512;
   const size_t N = g.size();
-  const int K = g.coeffs();
-  gr.means.resize(3 * N);
-  gr.log_scales.resize(3 * N);
-  gr.quats.resize(4 * N);
-  gr.opacity_logits.resize(N);
-  gr.sh.resize(N * size_t(K) * 3);
-  gr.means2d.resize(2 * N);
+  size_param_grads(gr, N, g.coeffs());
   const long chunks = long((N + kChunk - 1) / kChunk);
 #pragma omp parallel for schedule(static)
   for (long c = 0; c < chunks; ++c) {

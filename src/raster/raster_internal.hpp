@@ -210,6 +210,17 @@ void check_gaussians(const GaussiansT<T>& g) {
     throw Error("rasterizer: inconsistent Gaussian array sizes");
 }
 
+// The parameter gradients of N Gaussians with K SH coefficients a channel, sized (not zeroed).
+template <class T>
+void size_param_grads(RasterGradsT<T>& gr, size_t N, int K) {
+  gr.means.resize(3 * N);
+  gr.log_scales.resize(3 * N);
+  gr.quats.resize(4 * N);
+  gr.opacity_logits.resize(N);
+  gr.sh.resize(N * size_t(K) * 3);
+  gr.means2d.resize(2 * N);
+}
+
 // ---- The phases (each defined in its own source, instantiated for float and double).
 
 // preprocess.cpp: project every Gaussian (culling, screen footprint, colour) into `out`, one at a
