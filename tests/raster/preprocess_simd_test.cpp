@@ -5,7 +5,6 @@
 #include <omp.h>
 
 #include <cmath>
-#include <random>
 
 #include "raster/raster_internal.hpp"
 #include "raster/raster_scene.hpp"
@@ -49,10 +48,7 @@ TEST(RasterChainRule, BlocksAgreeWithThePerGaussianLoop) {
   ASSERT_GT(culled, 2u);
   ASSERT_GT(clamped, 0u);
   Image wc(64, 48, 3), wa(64, 48, 1);
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<float> U(-1, 1);
-  for (float& v : wc.data) v = U(rng);
-  for (float& v : wa.data) v = U(rng);
+  test::random_upstream(wc, wa, 5);
   RasterGrads gr;
   rasterize_backward(g, cam, {}, fwd, wc, wa, gr);  // fills the screen-space accumulators
   const raster::CameraT<float> c(cam);

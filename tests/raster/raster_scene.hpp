@@ -52,6 +52,14 @@ inline Gaussians random_scene(const SceneOptions& o, unsigned seed) {
   return g;
 }
 
+// Upstream gradients for a backward pass: dL/dcolour then dL/dalpha uniform in [-1, 1].
+inline void random_upstream(Image& wc, Image& wa, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> U(-1, 1);
+  for (float& v : wc.data) v = U(rng);
+  for (float& v : wa.data) v = U(rng);
+}
+
 struct RefImage {
   int w = 0, h = 0;
   std::vector<double> color, alpha, depth;

@@ -344,10 +344,7 @@ TEST(RasterGrad, FloatMatchesDouble) {
   RasterResult rf;
   rasterize_forward(g, cam, {}, rf);
   Image wc(48, 40, 3), wa(48, 40, 1);
-  std::mt19937 rng(4);
-  std::uniform_real_distribution<float> U(-1, 1);
-  for (float& v : wc.data) v = U(rng);
-  for (float& v : wa.data) v = U(rng);
+  test::random_upstream(wc, wa, 4);
   RasterGrads gf;
   rasterize_backward(g, cam, {}, rf, wc, wa, gf);
   const GaussiansD gd = GaussiansD::from(g);
