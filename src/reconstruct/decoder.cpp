@@ -149,19 +149,23 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
   }
   ggeo_.zero_like(geo_);
   gapp_.zero_like(app_);
-  mlp_backward(geo_, geo_cache_, dYg_, ggeo_, &dXg_, feats_.data());
-  mlp_backward(app_, app_cache_, dYa_, gapp_, &dXa_, feats_.data());
-  dXg_ += dXa_;
+  // Both MLPs read the same features: the appearance MLP's input gradient is added to the
+  // geometry MLP's as it is written.
+  mlp_backward(geo_, geo_cache_, dYg_, ggeo_, &dX_, feats_.data());
+  mlp_backward(app_, app_cache_, dYa_, gapp_, &dX_, feats_.data(), true);
   // Only texels of the touched set are ever written (the points are the last decode's).
   if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_)
     throw Error("Decoder::backward: the points differ from the last decode's");
-  for (const auto& [b, e] : touched_ranges_)
-    std::fill(dplanes_.begin() + long(b), dplanes_.begin() + long(e), 0.f);
+  const auto& R = touched_ranges_;
+#pragma omp parallel for schedule(dynamic, 16)
+  for (long r = 0; r < long(R.size()); ++r)
+    std::fill(dplanes_.begin() + long(R[size_t(r)].first),
+              dplanes_.begin() + long(R[size_t(r)].second), 0.f);
   if (sub)
-    triplane_backward(tp_, sub_xs_.data(), sub_ys_.data(), sub_zs_.data(), m, dXg_.data(),
+    triplane_backward(tp_, sub_xs_.data(), sub_ys_.data(), sub_zs_.data(), m, dX_.data(),
                       dplanes_.data());
   else
-    triplane_backward(tp_, xs.data(), ys.data(), zs.data(), m, dXg_.data(), dplanes_.data());
+    triplane_backward(tp_, xs.data(), ys.data(), zs.data(), m, dX_.data(), dplanes_.data());
   ggeo_.pack(geo_grad_);
   gapp_.pack(app_grad_);
 }

@@ -71,7 +71,7 @@ class Decoder {
   std::vector<float> dplanes_, geo_grad_, app_grad_;  // their gradients
   MlpCache geo_cache_, app_cache_;
   MlpGrads ggeo_, gapp_;
-  Mlp::Mat Yg_, Ya_, dYg_, dYa_, dXg_, dXa_;
+  Mlp::Mat Yg_, Ya_, dYg_, dYa_, dX_;
   std::vector<float> feats_;        // N x F
   std::vector<float> tanh_off_;     // 3N: tanh of the raw offsets
   std::vector<float> scale_ratio_;  // 3N: d log_scale_filtered / d log_scale (3D filter)

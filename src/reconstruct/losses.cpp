@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "core/parallel_sum.hpp"
 
 namespace ks {
 
@@ -256,13 +257,16 @@ T ssim_masked(const T* x, const T* y, const float* mask, int w, int h, int ch) {
 
 template <typename T>
 T l1_loss(const T* x, const T* y, size_t n, T scale, T* dx) {
-  double s = 0;
   const T g = T(double(scale) / double(n));
-  for (size_t i = 0; i < n; ++i) {
-    const T d = x[i] - y[i];
-    s += std::abs(double(d));
-    if (dx) dx[i] += d > 0 ? g : (d < 0 ? -g : T(0));
-  }
+  const double s = chunked_sum(n, [&](size_t b, size_t e) {
+    double part = 0;
+    for (size_t i = b; i < e; ++i) {
+      const T d = x[i] - y[i];
+      part += std::abs(double(d));
+      if (dx) dx[i] += d > 0 ? g : (d < 0 ? -g : T(0));
+    }
+    return part;
+  });
   return T(s / double(n));
 }
 
@@ -297,6 +301,13 @@ Laplacian build_laplacian(const std::vector<std::vector<int>>& adj, const std::v
     L.offsets[v + 1] = int(L.neighbours.size());
     L.strength[v] = mode == LaplacianMode::kUniform ? 1.f : part_strength[labels[v]];
   }
+  L.in_offsets.assign(n + 1, 0);
+  for (int u : L.neighbours) ++L.in_offsets[u + 1];
+  for (int v = 0; v < n; ++v) L.in_offsets[v + 1] += L.in_offsets[v];
+  L.in_from.resize(L.neighbours.size());
+  std::vector<int> fill(L.in_offsets.begin(), L.in_offsets.end() - 1);
+  for (int v = 0; v < n; ++v)
+    for (int j = L.offsets[v]; j < L.offsets[v + 1]; ++j) L.in_from[fill[L.neighbours[j]]++] = v;
   return L;
 }
 
@@ -323,7 +334,32 @@ T laplacian_loss(const Laplacian& lap, const T* a, int dim, T scale, T* da) {
     }
     total += lap.strength[v] * s;
   }
-  if (da) {
+  if (da && lap.in_offsets.size() == size_t(n) + 1) {
+    // Gathered per vertex: the own term and the neighbours' terms in the order the serial
+    // scatter below adds them (by increasing source vertex, the own term first among equals),
+    // so the result is the same bit for bit.
+    const T g = T(2.0 * double(scale) * inv_n);
+#pragma omp parallel for schedule(static) if (n > 4096)
+    for (int u = 0; u < n; ++u) {
+      const int b = lap.in_offsets[u], e = lap.in_offsets[u + 1];
+      const bool own = lap.offsets[u + 1] > lap.offsets[u];
+      for (int k = 0; k < dim; ++k) {
+        T acc = da[size_t(u) * dim + k];
+        bool own_done = !own;
+        for (int j = b; j < e; ++j) {
+          const int v = lap.in_from[j];
+          if (!own_done && v >= u) {
+            acc += g * T(lap.strength[u]) * r[size_t(u) * dim + k];
+            own_done = true;
+          }
+          const T inv = T(1) / T(lap.offsets[v + 1] - lap.offsets[v]);
+          acc -= g * T(lap.strength[v]) * r[size_t(v) * dim + k] * inv;
+        }
+        if (!own_done) acc += g * T(lap.strength[u]) * r[size_t(u) * dim + k];
+        da[size_t(u) * dim + k] = acc;
+      }
+    }
+  } else if (da) {
     const T g = T(2.0 * double(scale) * inv_n);
     for (int v = 0; v < n; ++v) {
       const int b = lap.offsets[v], e = lap.offsets[v + 1];

@@ -38,6 +38,10 @@ struct Laplacian {
   // CSR neighbour lists and per-vertex strength (lambda of its part, or the uniform lambda).
   std::vector<int> offsets, neighbours;
   std::vector<float> strength;
+  // The lists transposed (build_laplacian fills them): the vertices v whose list holds u, for
+  // each u in increasing v (with repeats), so the gradient gathers per vertex in parallel.
+  // Empty: laplacian_loss scatters serially.
+  std::vector<int> in_offsets, in_from;
   int num_vertices() const { return int(strength.size()); }
 };
 

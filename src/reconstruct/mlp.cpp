@@ -186,11 +186,11 @@ void forward_avx2(const MlpT<float>& m, const Eigen::Ref<const MlpT<float>::Mat>
 
 void backward_avx2(const MlpT<float>& m, const MlpCacheT<float>& cache,
                    const Eigen::Ref<const MlpT<float>::Mat>& dY, MlpGradsT<float>& g,
-                   MlpT<float>::Mat* dX, const float* X0) {
+                   MlpT<float>::Mat* dX, const float* X0, bool add_dx) {
   const int L = int(m.W.size());
   if (g.W.size() != m.W.size()) g.zero_like(m);
   const Eigen::Index n = dY.cols();
-  if (dX) dX->resize(m.W[0].cols(), n);
+  if (dX && !add_dx) dX->resize(m.W[0].cols(), n);
   // Caller-thread scratch (see forward_avx2): transposed weights for din = W^T delta.
   static thread_local Packed packed;
   Packed& pk = packed;
@@ -244,9 +244,10 @@ void backward_avx2(const MlpT<float>& m, const MlpCacheT<float>& cache,
         float* dst = l > 0 ? scratch.data() + size_t(l % 2) * size_t(kSub) * size_t(maxdim)
                            : dX->data() + s0 * in;
         // l > 0: ReLU backward, the gradient passes where the layer's output act > 0.
-        mk::gemm_cols_avx2(pk.data.data() + pk.w[size_t(l)], in, out, delta, ld, len, dst, in,
-                           l > 0 ? mk::Epilogue::kMask : mk::Epilogue::kNone, nullptr,
-                           l > 0 ? act : nullptr, in);
+        mk::gemm_cols_avx2(
+            pk.data.data() + pk.w[size_t(l)], in, out, delta, ld, len, dst, in,
+            l > 0 ? mk::Epilogue::kMask : (add_dx ? mk::Epilogue::kAdd : mk::Epilogue::kNone),
+            nullptr, l > 0 ? act : nullptr, in);
         delta = dst;
         ld = in;
       }
@@ -313,16 +314,18 @@ void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>
 template <typename T>
 void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
                   const Eigen::Ref<const typename MlpT<T>::Mat>& dY, MlpGradsT<T>& g,
-                  typename MlpT<T>::Mat* dX, const T* X) {
+                  typename MlpT<T>::Mat* dX, const T* X, bool add_dx) {
   // The first layer's input: the forward's copy, or the caller's X when it kept none.
   if (m.W.empty() || cache.act.size() != m.W.size())
     throw Error("mlp_backward: the cache is not from a forward pass of this MLP");
   if (!X && cache.act[0].cols() != dY.cols())
     throw Error("mlp_backward: the forward kept no input and none was given");
   const T* X0 = X ? X : cache.act[0].data();
+  if (dX && add_dx && (dX->rows() != m.W[0].cols() || dX->cols() != dY.cols()))
+    throw Error("mlp_backward: the gradient to add to has the wrong shape");
   if constexpr (std::is_same_v<T, float>) {
     if (mk::use_avx2()) {
-      backward_avx2(m, cache, dY, g, dX, X0);
+      backward_avx2(m, cache, dY, g, dX, X0, add_dx);
       return;
     }
   }
@@ -332,7 +335,7 @@ void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
   const int L = int(m.W.size());
   if (g.W.size() != m.W.size()) g.zero_like(m);
   const Eigen::Index n = dY.cols();
-  if (dX) dX->resize(m.W[0].cols(), n);
+  if (dX && !add_dx) dX->resize(m.W[0].cols(), n);
   const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
   // Per-block gradient partials in one flat buffer reused across calls (caller thread; the
   // workers use it through the reference): layer l's dW (out x in) at ow[l], db at ob[l].
@@ -369,7 +372,14 @@ void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
       gb.setZero();
       for (Eigen::Index p = 0; p < len; ++p) gb += delta.col(p);  // row sums, points in order
       if (l == 0) {
-        if (dX) dX->middleCols(c0, len).noalias() = W.transpose() * delta;
+        if (dX && add_dx) {
+          // The product first (in the delta buffer not in use), then one addition.
+          Eigen::Map<Mat> prod(delta.data() == bufs[0] ? bufs[1] : bufs[0], W.cols(), len);
+          prod.noalias() = W.transpose() * delta;
+          dX->middleCols(c0, len) += prod;
+        } else if (dX) {
+          dX->middleCols(c0, len).noalias() = W.transpose() * delta;
+        }
         break;
       }
       T* dst = bufs[l % 2];
@@ -404,9 +414,9 @@ template void mlp_forward(const MlpT<double>&, const Eigen::Ref<const MlpT<doubl
                           MlpCacheT<double>&, MlpT<double>::Mat&, bool);
 template void mlp_backward(const MlpT<float>&, const MlpCacheT<float>&,
                            const Eigen::Ref<const MlpT<float>::Mat>&, MlpGradsT<float>&,
-                           MlpT<float>::Mat*, const float*);
+                           MlpT<float>::Mat*, const float*, bool);
 template void mlp_backward(const MlpT<double>&, const MlpCacheT<double>&,
                            const Eigen::Ref<const MlpT<double>::Mat>&, MlpGradsT<double>&,
-                           MlpT<double>::Mat*, const double*);
+                           MlpT<double>::Mat*, const double*, bool);
 
 }  // namespace ks

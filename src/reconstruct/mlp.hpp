@@ -53,12 +53,13 @@ template <typename T>
 void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>& X,
                  MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y, bool keep_input = true);
 // Given dL/dY (out x N): accumulates weight/bias gradients into g and, if dX != nullptr, writes
-// dL/dX (in x N). X: the forward's input (in x N, contiguous) when the forward did not keep it,
-// else nullptr.
+// dL/dX (in x N), or with add_dx adds it to *dX (which must be in x N already; each element gets
+// one addition of the finished dL/dX, as a separate sum would). X: the forward's input (in x N,
+// contiguous) when the forward did not keep it, else nullptr.
 template <typename T>
 void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
                   const Eigen::Ref<const typename MlpT<T>::Mat>& dY, MlpGradsT<T>& g,
-                  typename MlpT<T>::Mat* dX, const T* X = nullptr);
+                  typename MlpT<T>::Mat* dX, const T* X = nullptr, bool add_dx = false);
 
 using Mlp = MlpT<float>;
 using MlpCache = MlpCacheT<float>;

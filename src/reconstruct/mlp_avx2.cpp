@@ -108,6 +108,8 @@ KS_AVX2_INLINE void gemm_tile(const float* A, int lda, int k, int r0, int rows, 
         v = _mm256_and_ps(v, _mm256_cmp_ps(mv, zero, _CMP_GT_OQ));
       }
       float* y = Y + p * ldy + row;
+      if constexpr (E == Epilogue::kAdd)
+        v = _mm256_add_ps(v, full ? _mm256_loadu_ps(y) : _mm256_maskload_ps(y, mask));
       if (full)
         _mm256_storeu_ps(y, v);
       else
@@ -276,6 +278,9 @@ void gemm_cols_avx2(const float* A, int rows, int k, const float* X, std::ptrdif
       break;
     case Epilogue::kMask:
       gemm_cols_impl<Epilogue::kMask>(A, rows, k, X, ldx, n, Y, ldy, bias, M, ldm);
+      break;
+    case Epilogue::kAdd:
+      gemm_cols_impl<Epilogue::kAdd>(A, rows, k, X, ldx, n, Y, ldy, bias, M, ldm);
       break;
   }
 }

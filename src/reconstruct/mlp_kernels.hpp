@@ -20,6 +20,7 @@ enum class Epilogue {
   kBias,      // Y = A X + b
   kBiasRelu,  // Y = max(A X + b, 0)
   kMask,      // Y = (M > 0) ? A X : 0   (ReLU backward, M = the layer's ReLU output)
+  kAdd,       // Y = A X + Y   (the product finished first, then one addition per element)
 };
 
 // Y(:, p) = epilogue(A X(:, p)) for p in [0, n). A is rows x k, packed as A[j * pad8(rows) + r];

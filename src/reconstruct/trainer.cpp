@@ -12,6 +12,7 @@
 #include "body/lbs.hpp"
 #include "body/skin_weights.hpp"
 #include "core/error.hpp"
+#include "core/parallel_sum.hpp"
 #include "core/progress.hpp"
 #include "mesh/trimesh.hpp"
 #include "raster/rasterizer.hpp"
@@ -309,24 +310,33 @@ struct Trainer::Impl {
     if (lo.w_mask > 0)
       L.mask = l1_loss<float>(rr.alpha.data.data(), fr.mask.data.data(), P, lo.w_mask,
                               dalpha.data.data());
-    double mse = 0;
-    for (size_t p = 0; p < 3 * P; ++p) {
-      const double d = rr.color.data[p] - fr.image.data[p];
-      mse += d * d;
-    }
-    L.mse = mse / double(3 * P);
+    const float* rc = rr.color.data.data();
+    const float* fc = fr.image.data.data();
+    L.mse = chunked_sum(3 * P,
+                        [&](size_t b, size_t e) {
+                          double s = 0;
+                          for (size_t p = b; p < e; ++p) {
+                            const double d = rc[p] - fc[p];
+                            s += d * d;
+                          }
+                          return s;
+                        }) /
+            double(3 * P);
 
     // Backward through the rasterizer and LBS.
     rasterize_backward(posed, fr.camera, rs, rr, dcolor, dalpha, rg);
     lbs_backward(lbs_cache, rg.means, rg.quats, dmeans_c, dquats_c);
 
     // Regularisers on offsets and colours.
-    doff.assign(3 * size_t(n), 0.f);
-    double off_l2 = 0;
-    for (size_t i = 0; i < 3 * size_t(n); ++i) {
-      off_l2 += double(offsets[i]) * offsets[i];
-      doff[i] = 2.f * lo.w_offset * offsets[i] / float(n);
-    }
+    doff.resize(3 * size_t(n));
+    double off_l2 = chunked_sum(3 * size_t(n), [&](size_t b, size_t e) {
+      double s = 0;
+      for (size_t i = b; i < e; ++i) {
+        s += double(offsets[i]) * offsets[i];
+        doff[i] = 2.f * lo.w_offset * offsets[i] / float(n);
+      }
+      return s;
+    });
     off_l2 /= n;
     dsh = rg.sh;
     float lap_pos = 0, lap_col = 0;

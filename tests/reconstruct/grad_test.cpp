@@ -285,4 +285,58 @@ TEST(ReconstructGrad, LaplacianMatchesFiniteDifferences) {
   EXPECT_THROW(parse_laplacian_mode("cotan"), std::exception);
 }
 
+// The gradient gathered per vertex (the transposed lists, in parallel) is the serial scatter's
+// bit for bit, on lists that are not symmetric and hold repeats, the vertex itself and nothing;
+// and the L1 loss's chunked sum does not depend on the thread count.
+TEST(ReconstructGrad, LaplacianGatherIsTheScatterBitForBit) {
+  const int n = 6000;
+  std::mt19937_64 rng(9);
+  std::uniform_int_distribution<int> pick(0, n - 1), count(0, 7), part(0, kNumParts - 1);
+  std::vector<std::vector<int>> adj(n);
+  std::vector<int> labels(n);
+  for (int v = 0; v < n; ++v) {
+    labels[size_t(v)] = part(rng) % 3;
+    const int c = v % 97 == 0 ? 0 : count(rng);
+    for (int k = 0; k < c; ++k) adj[size_t(v)].push_back(k == 3 ? v : pick(rng));
+    if (c > 4) adj[size_t(v)].push_back(adj[size_t(v)][0]);
+  }
+  std::uniform_real_distribution<float> U(-1.f, 1.f);
+  std::vector<float> a(size_t(n) * 3), base(a.size());
+  for (auto& x : a) x = U(rng);
+  for (auto& x : base) x = U(rng);
+  const int saved = omp_get_max_threads();
+  for (auto mode : {LaplacianMode::kUniform, LaplacianMode::kSemantic}) {
+    const Laplacian gather = build_laplacian(adj, labels, mode, default_part_strengths());
+    ASSERT_EQ(gather.in_offsets.size(), size_t(n) + 1);
+    Laplacian scatter = gather;
+    scatter.in_offsets.clear();
+    scatter.in_from.clear();
+    std::vector<float> g1 = base, g2 = base, g3 = base;
+    const float v1 = laplacian_loss<float>(scatter, a.data(), 3, 0.7f, g1.data());
+    omp_set_num_threads(1);
+    const float v2 = laplacian_loss<float>(gather, a.data(), 3, 0.7f, g2.data());
+    omp_set_num_threads(2);
+    const float v3 = laplacian_loss<float>(gather, a.data(), 3, 0.7f, g3.data());
+    omp_set_num_threads(saved);
+    EXPECT_FLOAT_EQ(v1, v2);
+    EXPECT_FLOAT_EQ(v2, v3);
+    EXPECT_EQ(g1, g2);
+    EXPECT_EQ(g1, g3);
+  }
+  const size_t m = 300001;  // several chunks and a partial one
+  std::vector<float> x(m), y(m);
+  for (size_t i = 0; i < m; ++i) x[i] = U(rng), y[i] = U(rng);
+  std::vector<float> d1(m, 0.f), d2(m, 0.f);
+  omp_set_num_threads(1);
+  const float l1 = l1_loss<float>(x.data(), y.data(), m, 0.5f, d1.data());
+  omp_set_num_threads(2);
+  const float l2 = l1_loss<float>(x.data(), y.data(), m, 0.5f, d2.data());
+  omp_set_num_threads(saved);
+  EXPECT_EQ(l1, l2);
+  EXPECT_EQ(d1, d2);
+  double ref = 0;
+  for (size_t i = 0; i < m; ++i) ref += std::abs(double(x[i] - y[i]));
+  EXPECT_NEAR(l1, ref / double(m), 1e-6);
+}
+
 }  // namespace ks

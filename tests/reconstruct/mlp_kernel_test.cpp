@@ -192,6 +192,41 @@ TEST(MlpKernels, InputNotKeptGivesTheSameResults) {
   EXPECT_EQ(g1.W[0], g2.W[0]);
 }
 
+// Two MLPs on one input (the decoder): the second's input gradient added to the first's as it
+// is written is the sum of the two, bit for bit, on both paths; a gradient of the wrong shape to
+// add to is refused.
+TEST(MlpKernels, InputGradientAddedInPlace) {
+  for (mk::Path path : {mk::Path::kEigen, mk::Path::kAvx2}) {
+    if (path == mk::Path::kAvx2 && !mk::cpu_has_avx2_fma()) continue;
+    PathGuard guard(path);
+    Mlp a, b;
+    a.init({96, 32, 32, 9}, 7, 0.5f);
+    b.init({96, 32, 3}, 8, 0.5f);
+    std::mt19937_64 rng(9);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    const int n = 2051;
+    Mlp::Mat X(96, n), dYa(9, n), dYb(3, n);
+    for (int i = 0; i < X.size(); ++i) X.data()[i] = u(rng);
+    for (int i = 0; i < dYa.size(); ++i) dYa.data()[i] = u(rng);
+    for (int i = 0; i < dYb.size(); ++i) dYb.data()[i] = u(rng);
+    MlpCache ca, cb;
+    Mlp::Mat Ya, Yb, dXa, dXb, dX;
+    mlp_forward(a, X, ca, Ya, false);
+    mlp_forward(b, X, cb, Yb, false);
+    MlpGrads ga, gb, ga2, gb2;
+    ga.zero_like(a), gb.zero_like(b), ga2.zero_like(a), gb2.zero_like(b);
+    mlp_backward(a, ca, dYa, ga, &dXa, X.data());
+    mlp_backward(b, cb, dYb, gb, &dXb, X.data());
+    mlp_backward(a, ca, dYa, ga2, &dX, X.data());
+    mlp_backward(b, cb, dYb, gb2, &dX, X.data(), true);
+    const Mlp::Mat sum = dXa + dXb;
+    EXPECT_EQ(dX, sum);
+    for (size_t l = 0; l < b.W.size(); ++l) EXPECT_EQ(gb2.W[l], gb.W[l]);
+    Mlp::Mat wrong(96, n - 1);
+    EXPECT_THROW(mlp_backward(b, cb, dYb, gb2, &wrong, X.data(), true), Error);
+  }
+}
+
 // An empty batch gives empty outputs and leaves the gradients as they were (both paths).
 TEST(MlpKernels, EmptyBatch) {
   for (mk::Path path : {mk::Path::kEigen, mk::Path::kAvx2}) {
