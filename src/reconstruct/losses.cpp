@@ -315,61 +315,77 @@ template <typename T>
 T laplacian_loss(const Laplacian& lap, const T* a, int dim, T scale, T* da) {
   const int n = lap.num_vertices();
   if (n == 0 || lap.neighbours.empty()) return T(0);
-  double total = 0;
   const double inv_n = 1.0 / n;
-  // Residuals first (parallel), then the scatter (serial: neighbours overlap).
-  std::vector<T> r(size_t(n) * dim, T(0));
-#pragma omp parallel for schedule(static) reduction(+ : total) if (n > 4096)
-  for (int v = 0; v < n; ++v) {
-    const int b = lap.offsets[v], e = lap.offsets[v + 1];
-    if (b == e) continue;
-    const T inv = T(1) / T(e - b);
-    double s = 0;
-    for (int k = 0; k < dim; ++k) {
-      T m = 0;
-      for (int j = b; j < e; ++j) m += a[size_t(lap.neighbours[j]) * dim + k];
-      const T d = a[size_t(v) * dim + k] - m * inv;
-      r[size_t(v) * dim + k] = d;
-      s += double(d) * double(d);
-    }
-    total += lap.strength[v] * s;
-  }
+  const T g = T(2.0 * double(scale) * inv_n);
+  // Residuals first, in parallel: for each vertex with neighbours its gradient term
+  // own = g s_v (a_v - mean N(v)) and share = own / |N(v)|, what each neighbour loses.
+  static thread_local std::vector<T> scratch;  // caller thread's, used by the workers below
+  std::vector<T>& sc = scratch;
+  sc.resize(da ? 2 * size_t(n) * dim : 0);
+  T* own = sc.data();
+  T* share = own + (da ? size_t(n) * dim : 0);
+  const double total = chunked_sum(
+      size_t(n),
+      [&](size_t v0, size_t v1) {
+        double part = 0;
+        std::vector<T> m(static_cast<size_t>(dim));
+        T* mp = m.data();
+        for (size_t v = v0; v < v1; ++v) {
+          const int b = lap.offsets[v], e = lap.offsets[v + 1];
+          if (b == e) continue;
+          const T inv = T(1) / T(e - b);
+          const T sv = g * T(lap.strength[v]);
+          std::fill(m.begin(), m.end(), T(0));
+          for (int j = b; j < e; ++j) {  // each channel summed over the neighbours in order
+            const T* an = a + size_t(lap.neighbours[j]) * dim;
+            for (int k = 0; k < dim; ++k) mp[k] += an[k];
+          }
+          double sq = 0;
+          for (int k = 0; k < dim; ++k) {
+            const T d = a[v * dim + k] - mp[k] * inv;
+            sq += double(d) * double(d);
+            if (da) {
+              own[v * dim + k] = sv * d;
+              share[v * dim + k] = own[v * dim + k] * inv;
+            }
+          }
+          part += lap.strength[v] * sq;
+        }
+        return part;
+      },
+      4096);
   if (da && lap.in_offsets.size() == size_t(n) + 1) {
-    // Gathered per vertex: the own term and the neighbours' terms in the order the serial
+    // Gathered per vertex: the own term and the neighbours' shares in the order the serial
     // scatter below adds them (by increasing source vertex, the own term first among equals),
     // so the result is the same bit for bit.
-    const T g = T(2.0 * double(scale) * inv_n);
 #pragma omp parallel for schedule(static) if (n > 4096)
     for (int u = 0; u < n; ++u) {
       const int b = lap.in_offsets[u], e = lap.in_offsets[u + 1];
-      const bool own = lap.offsets[u + 1] > lap.offsets[u];
+      const bool has_own = lap.offsets[u + 1] > lap.offsets[u];
       for (int k = 0; k < dim; ++k) {
         T acc = da[size_t(u) * dim + k];
-        bool own_done = !own;
+        bool own_done = !has_own;
         for (int j = b; j < e; ++j) {
           const int v = lap.in_from[j];
           if (!own_done && v >= u) {
-            acc += g * T(lap.strength[u]) * r[size_t(u) * dim + k];
+            acc += own[size_t(u) * dim + k];
             own_done = true;
           }
-          const T inv = T(1) / T(lap.offsets[v + 1] - lap.offsets[v]);
-          acc -= g * T(lap.strength[v]) * r[size_t(v) * dim + k] * inv;
+          acc -= share[size_t(v) * dim + k];
         }
-        if (!own_done) acc += g * T(lap.strength[u]) * r[size_t(u) * dim + k];
+        if (!own_done) acc += own[size_t(u) * dim + k];
         da[size_t(u) * dim + k] = acc;
       }
     }
   } else if (da) {
-    const T g = T(2.0 * double(scale) * inv_n);
+    // Scattered (lists built by hand, without the transposed ones): serial, neighbours overlap.
     for (int v = 0; v < n; ++v) {
       const int b = lap.offsets[v], e = lap.offsets[v + 1];
       if (b == e) continue;
-      const T sv = g * T(lap.strength[v]);
-      const T inv = T(1) / T(e - b);
       for (int k = 0; k < dim; ++k) {
-        const T gr = sv * r[size_t(v) * dim + k];
-        da[size_t(v) * dim + k] += gr;
-        for (int j = b; j < e; ++j) da[size_t(lap.neighbours[j]) * dim + k] -= gr * inv;
+        da[size_t(v) * dim + k] += own[size_t(v) * dim + k];
+        for (int j = b; j < e; ++j)
+          da[size_t(lap.neighbours[j]) * dim + k] -= share[size_t(v) * dim + k];
       }
     }
   }

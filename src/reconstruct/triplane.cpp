@@ -67,7 +67,8 @@ void triplane_forward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T*
                       T* feats) {
   const int C = tp.channels;
   const int F = 3 * C;
-#pragma omp parallel for schedule(static) if (n > 1024)
+  // Dynamic: a lookup's cost is its cache misses, which vary along the points.
+#pragma omp parallel for schedule(dynamic, 2048) if (n > 1024)
   for (int i = 0; i < n; ++i) {
     T* out = feats + size_t(i) * F;
     for (int p = 0; p < 3; ++p) {
