@@ -174,17 +174,23 @@ template <class V, int CW>
   return v;
 }
 
-// A finished tile's pixels from its tile-local state (kTilePixels each) into `out`: colour over
-// the background by the final transmittance |Tt|, alpha, and with `full` the expected depth and
-// the backward's state (final transmittance, last contributor).
-template <class T, class S>
+// Tile-local pixel index of pixel (c, r) when the state is kept row by row.
+constexpr int row_index(int c, int r) {
+  return r * kTS + c;
+}
+
+// A finished tile's pixels from its tile-local state (kTilePixels each, pixel (c, r) at
+// index(c, r)) into `out`: colour over the background by the final transmittance |Tt|, alpha,
+// and with `full` the expected depth and the backward's state (final transmittance, last
+// contributor).
+template <class T, class S, int (*index)(int, int) = row_index>
 [[gnu::always_inline]] inline void store_tile(RasterResultT<T>& out, int ox, int oy, const T* bg,
                                               const T* Tt, const T* C0, const T* C1, const T* C2,
                                               const T* Dp, const S* last, bool full) {
   const int W = out.color.width, H = out.color.height;
   for (int r = 0; r < kTS && oy + r < H; ++r)
     for (int c = 0; c < kTS && ox + c < W; ++c) {
-      const int p = r * kTS + c;
+      const int p = index(c, r);
       const size_t pix = size_t(oy + r) * W + ox + c;
       const T Tf = std::abs(Tt[p]);
       out.color.data[3 * pix] = C0[p] + Tf * bg[0];

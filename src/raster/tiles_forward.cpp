@@ -96,10 +96,92 @@ template <int CW, bool kFull, class T, class Res>
   store_tile(out, ox, oy, bg, Tt, C0, C1, C2, Dp, last, kFull);
 }
 
+// The AVX2 kernel: one 8-lane vector is a block of 4 x 2 pixels (four columns of two rows), which
+// a small Gaussian covers in fewer steps than rows of eight (on the bench scene and a
+// reconstructed avatar, 15-19 % fewer block visits by the Gaussians' rectangles). The tile's
+// pixel state is kept block by block (lane l of block (br, bc) is pixel (4 bc + l % 4,
+// 2 br + l / 4)). Each pixel's arithmetic is the baseline's, operation for operation (dx as
+// its 4-wide chunks form it), so the images are the same bit for bit.
+constexpr int kBW = 4, kBH = 2, kBPR = kTS / kBW, kBlocks = kTilePixels / (kBW * kBH);
+
+// Tile-local pixel index of pixel (c, r) in the block layout.
+constexpr int block_index(int c, int r) {
+  return ((r / kBH) * kBPR + c / kBW) * (kBW * kBH) + (r % kBH) * kBW + c % kBW;
+}
+
 template <bool kFull, class Res>
 __attribute__((target("avx2"), flatten)) void composite_tile_avx2(Res& out, int tile, int tiles_x,
                                                                   int W, int H, const float* bg) {
-  composite_tile<8, kFull, float>(out, tile, tiles_x, W, H, bg);
+  using T = float;
+  using SV = Simd<float, 8>;
+  using V = SV::V;
+  using VI = SV::I;
+  using SI = SV::S;
+  const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
+  alignas(64) T Tt[kTilePixels], C0[kTilePixels], C1[kTilePixels], C2[kTilePixels], Dp[kTilePixels];
+  alignas(64) SI last[kTilePixels];
+  int block_live[kBlocks];
+  int tile_live = 0;
+  for (int q = 0; q < kBlocks; ++q) block_live[q] = 0;
+  for (int r = 0; r < kTS; ++r)
+    for (int c = 0; c < kTS; ++c) {
+      const int p = block_index(c, r);
+      const bool in = ox + c < W && oy + r < H;
+      Tt[p] = in ? T(1) : T(-1), C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
+      block_live[p / 8] += in;
+      tile_live += in;
+    }
+  const V col_off = {0, 1, 2, 3, 0, 1, 2, 3};
+  const V row_off = {0, 0, 0, 0, 1, 1, 1, 1};
+  const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
+  for (uint32_t e = start; e < end && tile_live > 0; ++e) {
+    const T* rec = &out.packed[size_t(kRec) * out.point_list[e]];
+    const T mx = rec[0] - T(ox), my = rec[1] - T(oy);
+    const T a = rec[2], b = rec[3], c = rec[4], o = rec[5];
+    const T cr = rec[6], cg = rec[7], cb = rec[8], zz = rec[9];
+    const int bc0 = std::max(int(rec[10]) - ox, 0) / kBW;
+    const int bc1 = std::min(int(rec[11]) - ox, kTS - 1) / kBW;
+    const int br0 = std::max(int(rec[12]) - oy, 0) / kBH;
+    const int br1 = std::min(int(rec[13]) - oy, kTS - 1) / kBH;
+    const int32_t idx1 = int32_t(e - start) + 1;
+    // dx and 0.5 a dx dx of each block column, the same on every block row.
+    V dxs[kBPR], hxs[kBPR];
+    for (int q = bc0; q <= bc1; ++q) {
+      dxs[q] = (mx - T(q * kBW) - T(0.5)) - col_off;
+      hxs[q] = T(0.5) * a * dxs[q] * dxs[q];
+    }
+    for (int br = br0; br <= br1; ++br) {
+      const V dy = my - ((T(br * kBH) + row_off) + T(0.5));
+      const V cdy = T(0.5) * c * dy * dy, bdy = b * dy;
+      for (int q = bc0; q <= bc1; ++q) {
+        const int blk = br * kBPR + q;
+        if (block_live[blk] == 0) continue;
+        const int p0 = blk * 8;
+        const V dx = dxs[q];
+        const V pw = -(hxs[q] + cdy) - bdy * dx;
+        const V og = o * SV::exp(pw);
+        const V al = og < T(0.99) ? og : V{} + T(0.99);
+        const V Tp = vload<V>(Tt + p0);
+        const VI ok = (pw <= T(0)) & (al >= T(1.0f / 255.0f)) & (Tp > T(0));
+        const V Tn = Tp * (T(1) - al);
+        const VI term = ok & (Tn < T(1e-4));
+        const VI con = ok & ~term;
+        const V w = con ? al * Tp : V{};
+        vstore(C0 + p0, vload<V>(C0 + p0) + w * cr);
+        vstore(C1 + p0, vload<V>(C1 + p0) + w * cg);
+        vstore(C2 + p0, vload<V>(C2 + p0) + w * cb);
+        if constexpr (kFull) vstore(Dp + p0, vload<V>(Dp + p0) + w * zz);
+        vstore(Tt + p0, con ? Tn : (term ? -Tp : Tp));
+        if constexpr (kFull) vstore(last + p0, (con & SI(idx1)) | (~con & vload<VI>(last + p0)));
+        const int nterm = SV::count(term);
+        if (nterm) {
+          block_live[blk] -= nterm;
+          tile_live -= nterm;
+        }
+      }
+    }
+  }
+  store_tile<T, SI, block_index>(out, ox, oy, bg, Tt, C0, C1, C2, Dp, last, kFull);
 }
 
 }  // namespace
