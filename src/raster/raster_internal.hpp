@@ -167,16 +167,30 @@ template <class V, class T>
 [[gnu::always_inline]] inline void vstore(T* p, const V& v) {
   std::memcpy(p, &v, sizeof v);
 }
-template <class V, int CW>
-[[gnu::always_inline]] inline V lanes() {
+
+// Tile-local pixel index of pixel (c, r) when the tile's state is kept in blocks of BW x BH
+// pixels, one SIMD vector each (blocks row by row, a block's pixels row by row): lane l of
+// block (br, q) is pixel (BW q + l % BW, BH br + l / BW). Blocks of one row are the plain
+// row-major layout.
+template <int BW, int BH>
+constexpr int block_index(int c, int r) {
+  return ((r / BH) * (kTS / BW) + c / BW) * (BW * BH) + (r % BH) * BW + c % BW;
+}
+constexpr int row_index(int c, int r) {
+  return block_index<kTS, 1>(c, r);
+}
+// Each lane's column (l % BW) and row (l / BW) within its block.
+template <class V, int BW, int BH>
+[[gnu::always_inline]] inline V block_columns() {
   V v{};
-  for (int l = 0; l < CW; ++l) v[l] = l;
+  for (int l = 0; l < BW * BH; ++l) v[l] = l % BW;
   return v;
 }
-
-// Tile-local pixel index of pixel (c, r) when the state is kept row by row.
-constexpr int row_index(int c, int r) {
-  return r * kTS + c;
+template <class V, int BW, int BH>
+[[gnu::always_inline]] inline V block_rows() {
+  V v{};
+  for (int l = 0; l < BW * BH; ++l) v[l] = l / BW;
+  return v;
 }
 
 // A finished tile's pixels from its tile-local state (kTilePixels each, pixel (c, r) at

@@ -57,28 +57,29 @@ template <int CW, class T, class V>
   }
 }
 
-// One tile of the backward pass (reverse order), accumulating into `acc` (9 per Gaussian).
-template <int CW, class T, class Res, class Img>
+// One tile of the backward pass (reverse order), accumulating into `acc` (9 per Gaussian). One
+// SIMD vector is a block of BW x BH pixels, the forward's layout (block_index).
+template <int BW, int BH, class T, class Res, class Img>
 [[gnu::always_inline]] inline void backward_tile(const Res& fwd, const Img& dLdc, const Img& dLda,
                                                  bool has_da, const T* bg, T* acc, int tile,
                                                  int tiles_x, int W, int H) {
-  constexpr int kCPR_ = kTS / CW, kChunks_ = kTS * kCPR_;
+  constexpr int N = BW * BH, kBPR = kTS / BW, kBlocks = kTilePixels / N;
   const uint32_t start = fwd.tile_ranges[2 * tile], end = fwd.tile_ranges[2 * tile + 1];
   if (start == end) return;
   const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
   alignas(64) T Tt[kTilePixels], Tf[kTilePixels], R0[kTilePixels], R1[kTilePixels], R2[kTilePixels],
       D0[kTilePixels], D1[kTilePixels], D2[kTilePixels], DA[kTilePixels];
-  using SV = Simd<T, CW>;
+  using SV = Simd<T, N>;
   using V = typename SV::V;
   using VI = typename SV::I;
   using SI = typename SV::S;
   alignas(64) SI last[kTilePixels];
-  int chunk_max[kChunks_];  // max over the chunk's pixels of last contributor + 1
+  int block_max[kBlocks];  // max over the block's pixels of last contributor + 1
   int jmax = 0;
-  for (int q = 0; q < kChunks_; ++q) chunk_max[q] = 0;
+  for (int q = 0; q < kBlocks; ++q) block_max[q] = 0;
   for (int r = 0; r < kTS; ++r)
     for (int c = 0; c < kTS; ++c) {
-      const int p = r * kTS + c;
+      const int p = block_index<BW, BH>(c, r);
       if (ox + c < W && oy + r < H) {
         const size_t pix = size_t(oy + r) * W + ox + c;
         Tt[p] = Tf[p] = fwd.final_T[pix];
@@ -90,9 +91,10 @@ template <int CW, class T, class Res, class Img>
         Tt[p] = Tf[p] = 1, last[p] = 0, D0[p] = D1[p] = D2[p] = DA[p] = 0;
       }
       R0[p] = bg[0], R1[p] = bg[1], R2[p] = bg[2];
-      chunk_max[p / CW] = std::max(chunk_max[p / CW], int(last[p]));
+      block_max[p / N] = std::max(block_max[p / N], int(last[p]));
       jmax = std::max(jmax, int(last[p]));
     }
+  const V col_off = block_columns<V, BW, BH>(), row_off = block_rows<V, BW, BH>();
   alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
       br[kBatch], bgc[kBatch], bbl[kBatch];
   int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
@@ -108,10 +110,10 @@ template <int CW, class T, class Res, class Img>
       bmy[k] = rec[1] - T(oy);
       ba[k] = rec[2], bb[k] = rec[3], bc[k] = rec[4], bo[k] = rec[5];
       br[k] = rec[6], bgc[k] = rec[7], bbl[k] = rec[8];
-      bx0[k] = std::max(int(rec[10]) - ox, 0) / CW;
-      bx1[k] = std::min(int(rec[11]) - ox, kTS - 1) / CW;
-      by0[k] = std::max(int(rec[12]) - oy, 0);
-      by1[k] = std::min(int(rec[13]) - oy, kTS - 1);
+      bx0[k] = std::max(int(rec[10]) - ox, 0) / BW;
+      bx1[k] = std::min(int(rec[11]) - ox, kTS - 1) / BW;
+      by0[k] = std::max(int(rec[12]) - oy, 0) / BH;
+      by1[k] = std::min(int(rec[13]) - oy, kTS - 1) / BH;
     }
     for (int j = hi - 1; j >= lo; --j) {
       const int k = j - lo;
@@ -119,17 +121,22 @@ template <int CW, class T, class Res, class Img>
       const T cr = br[k], cg = bgc[k], cb = bbl[k];
       V s_mx{}, s_my{}, s_a{}, s_b{}, s_c{}, s_o{}, s_r{}, s_g{}, s_bl{};
       VI any{};  // lanes where this Gaussian contributed to some pixel of the tile
-      for (int r = by0[k]; r <= by1[k]; ++r) {
-        // Same expressions as the forward pass, so the skip decisions agree bit for bit.
-        const T dy = bmy[k] - (T(r) + T(0.5));
-        const int q0 = bx0[k], q1 = bx1[k];
-        const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
+      const int q0 = bx0[k], q1 = bx1[k];
+      // Same expressions as the forward pass, so the skip decisions agree bit for bit.
+      V dxs[kBPR], hxs[kBPR];
+      for (int q = q0; q <= q1; ++q) {
+        dxs[q] = (mx - T(q * BW) - T(0.5)) - col_off;
+        hxs[q] = T(0.5) * a * dxs[q] * dxs[q];
+      }
+      for (int rb = by0[k]; rb <= by1[k]; ++rb) {
+        const V dy = bmy[k] - ((T(rb * BH) + row_off) + T(0.5));
+        const V cdy = T(0.5) * c * dy * dy, bdy = b * dy;
         for (int q = q0; q <= q1; ++q) {
-          const int cq = r * kCPR_ + q;
-          if (chunk_max[cq] <= j) continue;
-          const int p0 = cq * CW;
-          const V dx = (mx - T(q * CW) - T(0.5)) - lanes<V, CW>();
-          const V pw = -(T(0.5) * a * dx * dx + cdy) - bdy * dx;
+          const int blk = rb * kBPR + q;
+          if (block_max[blk] <= j) continue;
+          const int p0 = blk * N;
+          const V dx = dxs[q];
+          const V pw = -(hxs[q] + cdy) - bdy * dx;
           const V Gv = SV::exp(pw);
           const V og = o * Gv;
           const V al = og < T(0.99) ? og : V{} + T(0.99);
@@ -163,18 +170,19 @@ template <int CW, class T, class Res, class Img>
       // Nothing to add where no pixel took this Gaussian (its sums are exact zeros).
       if (SV::count(any) == 0) continue;
       const V sums[kNG] = {s_mx, s_my, s_a, s_b, s_c, s_o, s_r, s_g, s_bl};
-      add_lane_sums<CW, T>(sums, acc + size_t(kNG) * bid[k]);
+      add_lane_sums<N, T>(sums, acc + size_t(kNG) * bid[k]);
     }
   }
 }
 
+// The AVX2 kernel in the AVX2 forward's blocks of 4 x 2 pixels.
 template <class Res, class Img>
 __attribute__((target("avx2"), flatten)) void backward_tile_avx2(const Res& fwd, const Img& dLdc,
                                                                  const Img& dLda, bool has_da,
                                                                  const float* bg, float* acc,
                                                                  int tile, int tiles_x, int W,
                                                                  int H) {
-  backward_tile<8, float>(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
+  backward_tile<4, 2, float>(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
 }
 
 }  // namespace
@@ -212,7 +220,7 @@ void backward_tiles(const RasterResultT<T>& fwd, const ImageT<T>& dLdc, const Im
           continue;
         }
       }
-      backward_tile<kCW, T>(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
+      backward_tile<kCW, 1, T>(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
     }
   }
 }

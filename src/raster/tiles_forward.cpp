@@ -1,6 +1,6 @@
 // The rasterizer's forward tile pass (3DGS's render in forward.cu): front-to-back alpha
-// compositing of one 16 x 16 tile per task, CW pixels of a row per SIMD chunk, with the
-// baseline kernel (SSE2 chunks of 4) and an AVX2 kernel (chunks of 8) compiled side by side.
+// compositing of one 16 x 16 tile per task, with the baseline kernel (SSE2: chunks of 4 pixels of
+// a row) and an AVX2 kernel (blocks of 4 x 2 pixels) compiled side by side.
 #pragma GCC diagnostic ignored "-Wpsabi"
 #include <omp.h>
 
@@ -13,150 +13,59 @@ namespace ks::raster {
 
 namespace {
 
-// One tile of the forward pass; CW pixels per SIMD chunk. kFull: also the expected depth and the
-// backward's state (last contributor, final transmittance).
-template <int CW, bool kFull, class T, class Res>
+// One tile of the forward pass. One SIMD vector is a block of BW x BH pixels (BW columns of BH
+// rows); the tile's pixel state is kept block by block (block_index). kFull: also the expected
+// depth and the backward's state (last contributor, final transmittance). Every block shape
+// does the same arithmetic per pixel, operation for operation, so all give the same image.
+template <int BW, int BH, bool kFull, class T, class Res>
 [[gnu::always_inline]] inline void composite_tile(Res& out, int tile, int tiles_x, int W, int H,
                                                   const T* bg) {
-  constexpr int kCPR_ = kTS / CW, kChunks_ = kTS * kCPR_;
+  constexpr int N = BW * BH, kBPR = kTS / BW, kBlocks = kTilePixels / N;
   const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
   alignas(64) T Tt[kTilePixels], C0[kTilePixels], C1[kTilePixels], C2[kTilePixels], Dp[kTilePixels];
-  using SV = Simd<T, CW>;
+  using SV = Simd<T, N>;
   using V = typename SV::V;
   using VI = typename SV::I;
   using SI = typename SV::S;
   // A pixel is finished (transmittance would fall below 1e-4, or outside the image) when its
   // Tt is negative; |Tt| is its transmittance.
   alignas(64) SI last[kTilePixels];
-  int chunk_live[kChunks_];  // live pixels per chunk of CW pixels of a row
-  int tile_live = 0;
-  for (int q = 0; q < kChunks_; ++q) chunk_live[q] = 0;
-  for (int r = 0; r < kTS; ++r)
-    for (int c = 0; c < kTS; ++c) {
-      const int p = r * kTS + c;
-      const bool in = ox + c < W && oy + r < H;
-      Tt[p] = in ? T(1) : T(-1), C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
-      chunk_live[p / CW] += in;
-      tile_live += in;
-    }
-  const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
-  alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
-      br[kBatch], bgc[kBatch], bbl[kBatch], bz[kBatch];
-  int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
-  for (uint32_t b0 = start; b0 < end && tile_live > 0; b0 += kBatch) {
-    const int n = int(std::min<uint32_t>(kBatch, end - b0));
-    for (int k = 0; k < n; ++k) {
-      const T* rec = &out.packed[size_t(kRec) * out.point_list[b0 + k]];
-      bmx[k] = rec[0] - T(ox);
-      bmy[k] = rec[1] - T(oy);
-      ba[k] = rec[2], bb[k] = rec[3], bc[k] = rec[4], bo[k] = rec[5];
-      br[k] = rec[6], bgc[k] = rec[7], bbl[k] = rec[8], bz[k] = rec[9];
-      bx0[k] = std::max(int(rec[10]) - ox, 0) / CW;
-      bx1[k] = std::min(int(rec[11]) - ox, kTS - 1) / CW;
-      by0[k] = std::max(int(rec[12]) - oy, 0);
-      by1[k] = std::min(int(rec[13]) - oy, kTS - 1);
-    }
-    for (int k = 0; k < n && tile_live > 0; ++k) {
-      const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
-      const T cr = br[k], cg = bgc[k], cb = bbl[k], zz = bz[k];
-      const int32_t idx1 = int32_t(b0 - start) + k + 1;
-      for (int r = by0[k]; r <= by1[k]; ++r) {
-        const T dy = bmy[k] - (T(r) + T(0.5));
-        const int q0 = bx0[k], q1 = bx1[k];
-        const T cdy = T(0.5) * c * dy * dy, bdy = b * dy;
-        for (int q = q0; q <= q1; ++q) {
-          const int cq = r * kCPR_ + q;
-          if (chunk_live[cq] == 0) continue;
-          const int p0 = cq * CW;
-          const V dx = (mx - T(q * CW) - T(0.5)) - lanes<V, CW>();
-          const V pw = -(T(0.5) * a * dx * dx + cdy) - bdy * dx;
-          const V og = o * SV::exp(pw);
-          const V al = og < T(0.99) ? og : V{} + T(0.99);
-          const V Tp = vload<V>(Tt + p0);
-          const VI ok = (pw <= T(0)) & (al >= T(1.0f / 255.0f)) & (Tp > T(0));
-          const V Tn = Tp * (T(1) - al);
-          const VI term = ok & (Tn < T(1e-4));
-          const VI con = ok & ~term;
-          const V w = con ? al * Tp : V{};
-          vstore(C0 + p0, vload<V>(C0 + p0) + w * cr);
-          vstore(C1 + p0, vload<V>(C1 + p0) + w * cg);
-          vstore(C2 + p0, vload<V>(C2 + p0) + w * cb);
-          if constexpr (kFull) vstore(Dp + p0, vload<V>(Dp + p0) + w * zz);
-          vstore(Tt + p0, con ? Tn : (term ? -Tp : Tp));
-          if constexpr (kFull) vstore(last + p0, (con & SI(idx1)) | (~con & vload<VI>(last + p0)));
-          const int nterm = SV::count(term);
-          if (nterm) {
-            chunk_live[cq] -= nterm;
-            tile_live -= nterm;
-          }
-        }
-      }
-    }
-  }
-  store_tile(out, ox, oy, bg, Tt, C0, C1, C2, Dp, last, kFull);
-}
-
-// The AVX2 kernel: one 8-lane vector is a block of 4 x 2 pixels (four columns of two rows), which
-// a small Gaussian covers in fewer steps than rows of eight (on the bench scene and a
-// reconstructed avatar, 15-19 % fewer block visits by the Gaussians' rectangles). The tile's
-// pixel state is kept block by block (lane l of block (br, bc) is pixel (4 bc + l % 4,
-// 2 br + l / 4)). Each pixel's arithmetic is the baseline's, operation for operation (dx as
-// its 4-wide chunks form it), so the images are the same bit for bit.
-constexpr int kBW = 4, kBH = 2, kBPR = kTS / kBW, kBlocks = kTilePixels / (kBW * kBH);
-
-// Tile-local pixel index of pixel (c, r) in the block layout.
-constexpr int block_index(int c, int r) {
-  return ((r / kBH) * kBPR + c / kBW) * (kBW * kBH) + (r % kBH) * kBW + c % kBW;
-}
-
-template <bool kFull, class Res>
-__attribute__((target("avx2"), flatten)) void composite_tile_avx2(Res& out, int tile, int tiles_x,
-                                                                  int W, int H, const float* bg) {
-  using T = float;
-  using SV = Simd<float, 8>;
-  using V = SV::V;
-  using VI = SV::I;
-  using SI = SV::S;
-  const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
-  alignas(64) T Tt[kTilePixels], C0[kTilePixels], C1[kTilePixels], C2[kTilePixels], Dp[kTilePixels];
-  alignas(64) SI last[kTilePixels];
-  int block_live[kBlocks];
+  int block_live[kBlocks];  // live pixels per block
   int tile_live = 0;
   for (int q = 0; q < kBlocks; ++q) block_live[q] = 0;
   for (int r = 0; r < kTS; ++r)
     for (int c = 0; c < kTS; ++c) {
-      const int p = block_index(c, r);
+      const int p = block_index<BW, BH>(c, r);
       const bool in = ox + c < W && oy + r < H;
       Tt[p] = in ? T(1) : T(-1), C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
-      block_live[p / 8] += in;
+      block_live[p / N] += in;
       tile_live += in;
     }
-  const V col_off = {0, 1, 2, 3, 0, 1, 2, 3};
-  const V row_off = {0, 0, 0, 0, 1, 1, 1, 1};
+  const V col_off = block_columns<V, BW, BH>(), row_off = block_rows<V, BW, BH>();
   const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
   for (uint32_t e = start; e < end && tile_live > 0; ++e) {
     const T* rec = &out.packed[size_t(kRec) * out.point_list[e]];
     const T mx = rec[0] - T(ox), my = rec[1] - T(oy);
     const T a = rec[2], b = rec[3], c = rec[4], o = rec[5];
     const T cr = rec[6], cg = rec[7], cb = rec[8], zz = rec[9];
-    const int bc0 = std::max(int(rec[10]) - ox, 0) / kBW;
-    const int bc1 = std::min(int(rec[11]) - ox, kTS - 1) / kBW;
-    const int br0 = std::max(int(rec[12]) - oy, 0) / kBH;
-    const int br1 = std::min(int(rec[13]) - oy, kTS - 1) / kBH;
+    const int q0 = std::max(int(rec[10]) - ox, 0) / BW;
+    const int q1 = std::min(int(rec[11]) - ox, kTS - 1) / BW;
+    const int br0 = std::max(int(rec[12]) - oy, 0) / BH;
+    const int br1 = std::min(int(rec[13]) - oy, kTS - 1) / BH;
     const int32_t idx1 = int32_t(e - start) + 1;
     // dx and 0.5 a dx dx of each block column, the same on every block row.
     V dxs[kBPR], hxs[kBPR];
-    for (int q = bc0; q <= bc1; ++q) {
-      dxs[q] = (mx - T(q * kBW) - T(0.5)) - col_off;
+    for (int q = q0; q <= q1; ++q) {
+      dxs[q] = (mx - T(q * BW) - T(0.5)) - col_off;
       hxs[q] = T(0.5) * a * dxs[q] * dxs[q];
     }
     for (int br = br0; br <= br1; ++br) {
-      const V dy = my - ((T(br * kBH) + row_off) + T(0.5));
+      const V dy = my - ((T(br * BH) + row_off) + T(0.5));
       const V cdy = T(0.5) * c * dy * dy, bdy = b * dy;
-      for (int q = bc0; q <= bc1; ++q) {
+      for (int q = q0; q <= q1; ++q) {
         const int blk = br * kBPR + q;
         if (block_live[blk] == 0) continue;
-        const int p0 = blk * 8;
+        const int p0 = blk * N;
         const V dx = dxs[q];
         const V pw = -(hxs[q] + cdy) - bdy * dx;
         const V og = o * SV::exp(pw);
@@ -181,7 +90,16 @@ __attribute__((target("avx2"), flatten)) void composite_tile_avx2(Res& out, int 
       }
     }
   }
-  store_tile<T, SI, block_index>(out, ox, oy, bg, Tt, C0, C1, C2, Dp, last, kFull);
+  store_tile<T, SI, block_index<BW, BH>>(out, ox, oy, bg, Tt, C0, C1, C2, Dp, last, kFull);
+}
+
+// The AVX2 kernel: one 8-lane vector is a block of 4 x 2 pixels, which a small Gaussian covers
+// in fewer steps than rows of eight (on the bench scene and a reconstructed avatar, 15-19 %
+// fewer block visits by the Gaussians' rectangles).
+template <bool kFull, class Res>
+__attribute__((target("avx2"), flatten)) void composite_tile_avx2(Res& out, int tile, int tiles_x,
+                                                                  int W, int H, const float* bg) {
+  composite_tile<4, 2, kFull, float>(out, tile, tiles_x, W, H, bg);
 }
 
 }  // namespace
@@ -209,9 +127,9 @@ void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* b
       }
     }
     if (full)
-      composite_tile<kCW, true, T>(out, tile, tiles_x, W, H, bg);
+      composite_tile<kCW, 1, true, T>(out, tile, tiles_x, W, H, bg);
     else
-      composite_tile<kCW, false, T>(out, tile, tiles_x, W, H, bg);
+      composite_tile<kCW, 1, false, T>(out, tile, tiles_x, W, H, bg);
   }
 }
 
