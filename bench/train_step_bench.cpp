@@ -1,13 +1,16 @@
 // Google Benchmark: the per-step pieces of the avatar fit besides the decoders and the rasterizer,
 // at the CLI defaults: the Adam step over the 512x512x32 triplane (25.2M parameters) and the
-// triplane lookup forward / backward at 165,378 points (2-level template), and the SSIM loss with
-// its gradient at 512x768, on 1 and 2 threads.
+// triplane lookup forward / backward at 165,378 points (2-level template), the SSIM loss with
+// its gradient at 512x768, and the semantic Laplacian of the 2-level template, on 1 and 2
+// threads.
 #include <benchmark/benchmark.h>
 #include <omp.h>
 
 #include <random>
 #include <vector>
 
+#include "body/body_model.hpp"
+#include "mesh/trimesh.hpp"
 #include "reconstruct/adam.hpp"
 #include "reconstruct/losses.hpp"
 #include "reconstruct/triplane.hpp"
@@ -108,8 +111,35 @@ void BM_SsimLoss(benchmark::State& st) {
   omp_set_num_threads(saved);
 }
 
+// One Laplacian term of a training step (the trainer has two: anchor offsets and colours), value
+// and gradient, on the default body's template subdivided twice with its part labels carried.
+// Args: threads.
+void BM_LaplacianLoss(benchmark::State& st) {
+  const ks::BodyModel& body = ks::default_body_model();
+  const ks::Subdivision sub = ks::subdivide(ks::TriMesh{body.v_template, body.faces}, 2);
+  const int n = int(sub.mesh.V.rows());
+  const ks::Laplacian lap = ks::build_laplacian(
+      ks::vertex_adjacency(sub.mesh.F, n), ks::carry_labels(sub.S, body.part_labels),
+      ks::LaplacianMode::kSemantic, ks::default_part_strengths());
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> U(-1.f, 1.f);
+  std::vector<float> a(3 * size_t(n)), da(a.size(), 0.f);
+  for (auto& x : a) x = 0.01f * U(rng);
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(int(st.range(0)));
+  for (auto _ : st)
+    benchmark::DoNotOptimize(ks::laplacian_loss<float>(lap, a.data(), 3, 0.1f, da.data()));
+  omp_set_num_threads(saved);
+  st.counters["vertices"] = n;
+}
+
 }  // namespace
 
+BENCHMARK(BM_LaplacianLoss)
+    ->ArgsProduct({{1, 2}})
+    ->ArgNames({"threads"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK(BM_SsimLoss)
     ->ArgsProduct({{100, 70}, {1, 2}})
     ->ArgNames({"share", "threads"})

@@ -311,72 +311,106 @@ Laplacian build_laplacian(const std::vector<std::vector<int>>& adj, const std::v
   return L;
 }
 
-template <typename T>
-T laplacian_loss(const Laplacian& lap, const T* a, int dim, T scale, T* da) {
+namespace {
+
+// The Laplacian's residual pass over vertices [v0, v1): for each vertex with neighbours its
+// gradient term own = g s_v (a_v - mean N(v)) and share = own / |N(v)| (what each neighbour
+// loses), when own != nullptr; returns the chunk's sum of s_v |a_v - mean N(v)|^2. D: the
+// channel count when fixed at compile time (the trainer's 3), else 0 and `dim` at run time; a
+// channel's neighbour sum runs over the neighbours in order either way.
+template <int D, typename T>
+double laplacian_residuals(const Laplacian& lap, const T* a, int dim, T g, size_t v0, size_t v1,
+                           T* own, T* share) {
+  if constexpr (D > 0) dim = D;
+  double part = 0;
+  std::vector<T> mdyn(D > 0 ? 0 : static_cast<size_t>(dim));
+  T mfix[D > 0 ? D : 1];
+  T* m = D > 0 ? mfix : mdyn.data();
+  for (size_t v = v0; v < v1; ++v) {
+    const int b = lap.offsets[v], e = lap.offsets[v + 1];
+    if (b == e) continue;
+    const T inv = T(1) / T(e - b);
+    const T sv = g * T(lap.strength[v]);
+    for (int k = 0; k < dim; ++k) m[k] = T(0);
+    for (int j = b; j < e; ++j) {
+      const T* an = a + size_t(lap.neighbours[j]) * dim;
+      for (int k = 0; k < dim; ++k) m[k] += an[k];
+    }
+    double sq = 0;
+    for (int k = 0; k < dim; ++k) {
+      const T d = a[v * dim + k] - m[k] * inv;
+      sq += double(d) * double(d);
+      if (own) {
+        own[v * dim + k] = sv * d;
+        share[v * dim + k] = own[v * dim + k] * inv;
+      }
+    }
+    part += lap.strength[v] * sq;
+  }
+  return part;
+}
+
+// The gradient of vertex u gathered over the transposed lists: the own term and the shares in
+// the order the serial scatter adds them (by increasing source vertex, the own term first among
+// equals), so the result is the scatter's bit for bit.
+template <int D, typename T>
+void laplacian_gather(const Laplacian& lap, int u, int dim, const T* own, const T* share, T* da) {
+  if constexpr (D > 0) {
+    dim = D;
+    const int b = lap.in_offsets[u], e = lap.in_offsets[u + 1];
+    bool own_done = lap.offsets[u + 1] == lap.offsets[u];
+    T acc[D];
+    for (int k = 0; k < D; ++k) acc[k] = da[size_t(u) * D + k];
+    for (int j = b; j < e; ++j) {
+      const int v = lap.in_from[j];
+      if (!own_done && v >= u) {
+        for (int k = 0; k < D; ++k) acc[k] += own[size_t(u) * D + k];
+        own_done = true;
+      }
+      for (int k = 0; k < D; ++k) acc[k] -= share[size_t(v) * D + k];
+    }
+    if (!own_done)
+      for (int k = 0; k < D; ++k) acc[k] += own[size_t(u) * D + k];
+    for (int k = 0; k < D; ++k) da[size_t(u) * D + k] = acc[k];
+  } else {
+    for (int k = 0; k < dim; ++k) {
+      const int b = lap.in_offsets[u], e = lap.in_offsets[u + 1];
+      bool own_done = lap.offsets[u + 1] == lap.offsets[u];
+      T acc = da[size_t(u) * dim + k];
+      for (int j = b; j < e; ++j) {
+        const int v = lap.in_from[j];
+        if (!own_done && v >= u) {
+          acc += own[size_t(u) * dim + k];
+          own_done = true;
+        }
+        acc -= share[size_t(v) * dim + k];
+      }
+      if (!own_done) acc += own[size_t(u) * dim + k];
+      da[size_t(u) * dim + k] = acc;
+    }
+  }
+}
+
+template <int D, typename T>
+T laplacian_loss_impl(const Laplacian& lap, const T* a, int dim, T scale, T* da) {
   const int n = lap.num_vertices();
-  if (n == 0 || lap.neighbours.empty()) return T(0);
   const double inv_n = 1.0 / n;
   const T g = T(2.0 * double(scale) * inv_n);
-  // Residuals first, in parallel: for each vertex with neighbours its gradient term
-  // own = g s_v (a_v - mean N(v)) and share = own / |N(v)|, what each neighbour loses.
+  // Residuals first, in parallel (chunks summed in order: the same value for any thread count).
   static thread_local std::vector<T> scratch;  // caller thread's, used by the workers below
   std::vector<T>& sc = scratch;
   sc.resize(da ? 2 * size_t(n) * dim : 0);
-  T* own = sc.data();
-  T* share = own + (da ? size_t(n) * dim : 0);
+  T* own = da ? sc.data() : nullptr;
+  T* share = da ? sc.data() + size_t(n) * dim : nullptr;
   const double total = chunked_sum(
       size_t(n),
       [&](size_t v0, size_t v1) {
-        double part = 0;
-        std::vector<T> m(static_cast<size_t>(dim));
-        T* mp = m.data();
-        for (size_t v = v0; v < v1; ++v) {
-          const int b = lap.offsets[v], e = lap.offsets[v + 1];
-          if (b == e) continue;
-          const T inv = T(1) / T(e - b);
-          const T sv = g * T(lap.strength[v]);
-          std::fill(m.begin(), m.end(), T(0));
-          for (int j = b; j < e; ++j) {  // each channel summed over the neighbours in order
-            const T* an = a + size_t(lap.neighbours[j]) * dim;
-            for (int k = 0; k < dim; ++k) mp[k] += an[k];
-          }
-          double sq = 0;
-          for (int k = 0; k < dim; ++k) {
-            const T d = a[v * dim + k] - mp[k] * inv;
-            sq += double(d) * double(d);
-            if (da) {
-              own[v * dim + k] = sv * d;
-              share[v * dim + k] = own[v * dim + k] * inv;
-            }
-          }
-          part += lap.strength[v] * sq;
-        }
-        return part;
+        return laplacian_residuals<D>(lap, a, dim, g, v0, v1, own, share);
       },
       4096);
   if (da && lap.in_offsets.size() == size_t(n) + 1) {
-    // Gathered per vertex: the own term and the neighbours' shares in the order the serial
-    // scatter below adds them (by increasing source vertex, the own term first among equals),
-    // so the result is the same bit for bit.
 #pragma omp parallel for schedule(static) if (n > 4096)
-    for (int u = 0; u < n; ++u) {
-      const int b = lap.in_offsets[u], e = lap.in_offsets[u + 1];
-      const bool has_own = lap.offsets[u + 1] > lap.offsets[u];
-      for (int k = 0; k < dim; ++k) {
-        T acc = da[size_t(u) * dim + k];
-        bool own_done = !has_own;
-        for (int j = b; j < e; ++j) {
-          const int v = lap.in_from[j];
-          if (!own_done && v >= u) {
-            acc += own[size_t(u) * dim + k];
-            own_done = true;
-          }
-          acc -= share[size_t(v) * dim + k];
-        }
-        if (!own_done) acc += own[size_t(u) * dim + k];
-        da[size_t(u) * dim + k] = acc;
-      }
-    }
+    for (int u = 0; u < n; ++u) laplacian_gather<D>(lap, u, dim, own, share, da);
   } else if (da) {
     // Scattered (lists built by hand, without the transposed ones): serial, neighbours overlap.
     for (int v = 0; v < n; ++v) {
@@ -390,6 +424,15 @@ T laplacian_loss(const Laplacian& lap, const T* a, int dim, T scale, T* da) {
     }
   }
   return T(total * inv_n);
+}
+
+}  // namespace
+
+template <typename T>
+T laplacian_loss(const Laplacian& lap, const T* a, int dim, T scale, T* da) {
+  if (lap.num_vertices() == 0 || lap.neighbours.empty()) return T(0);
+  return dim == 3 ? laplacian_loss_impl<3>(lap, a, dim, scale, da)
+                  : laplacian_loss_impl<0>(lap, a, dim, scale, da);
 }
 
 template float ssim(const float*, const float*, int, int, int, std::vector<float>*, float, float*);

@@ -301,28 +301,29 @@ TEST(ReconstructGrad, LaplacianGatherIsTheScatterBitForBit) {
     if (c > 4) adj[size_t(v)].push_back(adj[size_t(v)][0]);
   }
   std::uniform_real_distribution<float> U(-1.f, 1.f);
-  std::vector<float> a(size_t(n) * 3), base(a.size());
-  for (auto& x : a) x = U(rng);
-  for (auto& x : base) x = U(rng);
   const int saved = omp_get_max_threads();
-  for (auto mode : {LaplacianMode::kUniform, LaplacianMode::kSemantic}) {
-    const Laplacian gather = build_laplacian(adj, labels, mode, default_part_strengths());
-    ASSERT_EQ(gather.in_offsets.size(), size_t(n) + 1);
-    Laplacian scatter = gather;
-    scatter.in_offsets.clear();
-    scatter.in_from.clear();
-    std::vector<float> g1 = base, g2 = base, g3 = base;
-    const float v1 = laplacian_loss<float>(scatter, a.data(), 3, 0.7f, g1.data());
-    omp_set_num_threads(1);
-    const float v2 = laplacian_loss<float>(gather, a.data(), 3, 0.7f, g2.data());
-    omp_set_num_threads(2);
-    const float v3 = laplacian_loss<float>(gather, a.data(), 3, 0.7f, g3.data());
-    omp_set_num_threads(saved);
-    EXPECT_FLOAT_EQ(v1, v2);
-    EXPECT_FLOAT_EQ(v2, v3);
-    EXPECT_EQ(g1, g2);
-    EXPECT_EQ(g1, g3);
-  }
+  for (int dim : {3, 5})  // the trainer's channel count (a fixed-size path) and another
+    for (auto mode : {LaplacianMode::kUniform, LaplacianMode::kSemantic}) {
+      std::vector<float> a(size_t(n) * dim), base(a.size());
+      for (auto& x : a) x = U(rng);
+      for (auto& x : base) x = U(rng);
+      const Laplacian gather = build_laplacian(adj, labels, mode, default_part_strengths());
+      ASSERT_EQ(gather.in_offsets.size(), size_t(n) + 1);
+      Laplacian scatter = gather;
+      scatter.in_offsets.clear();
+      scatter.in_from.clear();
+      std::vector<float> g1 = base, g2 = base, g3 = base;
+      const float v1 = laplacian_loss<float>(scatter, a.data(), dim, 0.7f, g1.data());
+      omp_set_num_threads(1);
+      const float v2 = laplacian_loss<float>(gather, a.data(), dim, 0.7f, g2.data());
+      omp_set_num_threads(2);
+      const float v3 = laplacian_loss<float>(gather, a.data(), dim, 0.7f, g3.data());
+      omp_set_num_threads(saved);
+      EXPECT_EQ(v1, v2);
+      EXPECT_EQ(v2, v3);
+      EXPECT_EQ(g1, g2);
+      EXPECT_EQ(g1, g3);
+    }
   const size_t m = 300001;  // several chunks and a partial one
   std::vector<float> x(m), y(m);
   for (size_t i = 0; i < m; ++i) x[i] = U(rng), y[i] = U(rng);
