@@ -69,16 +69,21 @@ void BM_TriplaneForward(benchmark::State& st) {
   omp_set_num_threads(saved);
 }
 
-// As the trainer calls it: zero the plane gradient, then accumulate.
+// Zero the plane gradient, then accumulate. Args: points, threads, and whether the points'
+// bins are made once outside the loop (1, as the decoder does for its fixed anchors) or in
+// every call (0).
 void BM_TriplaneBackward(benchmark::State& st) {
   const int n = int(st.range(0));
   TriplaneFixture f(n);
   const int saved = omp_get_max_threads();
   omp_set_num_threads(int(st.range(1)));
+  const bool cached = st.range(2) != 0;
+  ks::TriplaneBins bins;
+  if (cached) bins = ks::triplane_bins(f.tp, f.xs.data(), f.ys.data(), f.zs.data(), n);
   for (auto _ : st) {
     f.dplanes.assign(f.tp.size(), 0.f);
     ks::triplane_backward(f.tp, f.xs.data(), f.ys.data(), f.zs.data(), n, f.dfeats.data(),
-                          f.dplanes.data());
+                          f.dplanes.data(), cached ? &bins : nullptr);
     benchmark::DoNotOptimize(f.dplanes.data());
   }
   omp_set_num_threads(saved);
@@ -156,8 +161,8 @@ BENCHMARK(BM_TriplaneForward)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_TriplaneBackward)
-    ->ArgsProduct({{165378}, {1, 2}})
-    ->ArgNames({"n", "threads"})
+    ->ArgsProduct({{165378}, {1, 2}, {0, 1}})
+    ->ArgNames({"n", "threads", "bins_once"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK_MAIN();

@@ -35,6 +35,7 @@ void Decoder::init(const DecoderOptions& o, uint64_t seed, const Eigen::MatrixXd
   last_offsets_.clear();
   subset_.clear();
   noted_xs_.clear(), noted_ys_.clear(), noted_zs_.clear();
+  bins_ = TriplaneBins{};
   geo_grad_.assign(geo_params_.size(), 0.f);
   app_grad_.assign(app_params_.size(), 0.f);
 }
@@ -60,6 +61,8 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
     triplane_mark_texels(tp_, xs.data(), ys.data(), zs.data(), n, &touched_);
     touched_ranges_ = texel_ranges(touched_, tp_.channels);
     noted_xs_ = xs, noted_ys_ = ys, noted_zs_ = zs;
+    // The backward's binning of these points, made once for all the steps until they change.
+    bins_ = triplane_bins(tp_, xs.data(), ys.data(), zs.data(), n);
   }
   if (subset && last_.size() != size_t(n))
     throw Error("Decoder::decode: a subset needs a whole decode of the same points before it");
@@ -165,7 +168,7 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
     triplane_backward(tp_, sub_xs_.data(), sub_ys_.data(), sub_zs_.data(), m, dX_.data(),
                       dplanes_.data());
   else
-    triplane_backward(tp_, xs.data(), ys.data(), zs.data(), m, dX_.data(), dplanes_.data());
+    triplane_backward(tp_, xs.data(), ys.data(), zs.data(), m, dX_.data(), dplanes_.data(), &bins_);
   ggeo_.pack(geo_grad_);
   gapp_.pack(app_grad_);
 }

@@ -84,6 +84,7 @@ class Decoder {
   std::vector<uint8_t> touched_;
   std::vector<std::pair<size_t, size_t>> touched_ranges_;
   std::vector<float> noted_xs_, noted_ys_, noted_zs_;
+  TriplaneBins bins_;  // triplane_bins of the noted points
   // The last decode's Gaussians and offsets (all points), its subset (empty: all) and that
   // subset's lookup points.
   Gaussians last_;

@@ -5,6 +5,8 @@
 #include <random>
 #include <vector>
 
+#include "core/error.hpp"
+
 namespace ks {
 
 namespace {
@@ -86,43 +88,53 @@ void triplane_forward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T*
 }
 
 template <typename T>
-void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T* zs, int n,
-                       const T* dfeats, T* dplanes) {
-  const int C = tp.channels;
-  const int F = 3 * C;
+TriplaneBins triplane_bins(const TriplaneT<T>& tp, const T* xs, const T* ys, const T* zs, int n) {
   const int res = tp.res;
-  // Points are binned by the texel row of their lookup into horizontal stripes of each plane; a
-  // point writes rows v0 and v0 + 1, so stripes of >= 2 rows two apart never touch the same
-  // texel: even stripes run in parallel, then odd ones. Each task writes whole texels (all C
-  // channels, contiguous) of one stripe, with the points in index order, so the sums are the same
-  // for any thread count.
-  const int stripes = std::max(1, std::min(64, (res - 1) / 2));
-  const int rows_per = (res - 1 + stripes - 1) / stripes;  // v0 is in [0, res - 2]
-  std::vector<int> start(size_t(3) * (stripes + 1), 0), order(size_t(3) * n);
+  TriplaneBins B;
+  B.n = n, B.res = res;
+  B.stripes = std::max(1, std::min(64, (res - 1) / 2));
+  const int rows_per = (res - 1 + B.stripes - 1) / B.stripes;  // v0 is in [0, res - 2]
+  B.start.assign(size_t(3) * (B.stripes + 1), 0);
+  B.order.resize(size_t(3) * n);
   std::vector<int> stripe_of(size_t(3) * n);
 #pragma omp parallel for schedule(static) if (n > 1024)
   for (int i = 0; i < n; ++i)
-    for (int p = 0; p < 3; ++p) {
-      const Bilinear<T> b = lookup(tp, p, xs[i], ys[i], zs[i]);
-      stripe_of[size_t(p) * n + i] = (b.i00 / res) / rows_per;
-    }
+    for (int p = 0; p < 3; ++p)
+      stripe_of[size_t(p) * n + i] = (lookup(tp, p, xs[i], ys[i], zs[i]).i00 / res) / rows_per;
+  // A stable counting sort of each plane's points by stripe.
   for (int p = 0; p < 3; ++p) {
-    int* st = start.data() + size_t(p) * (stripes + 1);
+    int* st = B.start.data() + size_t(p) * (B.stripes + 1);
     const int* so = stripe_of.data() + size_t(p) * n;
     for (int i = 0; i < n; ++i) ++st[so[i] + 1];
-    for (int s = 0; s < stripes; ++s) st[s + 1] += st[s];
-    std::vector<int> fill(st, st + stripes);
-    int* ord = order.data() + size_t(p) * n;
+    for (int s = 0; s < B.stripes; ++s) st[s + 1] += st[s];
+    std::vector<int> fill(st, st + B.stripes);
+    int* ord = B.order.data() + size_t(p) * n;
     for (int i = 0; i < n; ++i) ord[fill[size_t(so[i])]++] = i;
   }
+  return B;
+}
+
+template <typename T>
+void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T* zs, int n,
+                       const T* dfeats, T* dplanes, const TriplaneBins* bins) {
+  const int C = tp.channels;
+  const int F = 3 * C;
+  TriplaneBins local;
+  if (!bins) {
+    local = triplane_bins(tp, xs, ys, zs, n);
+    bins = &local;
+  }
+  if (bins->n != n || bins->res != tp.res)
+    throw Error("triplane_backward: the bins are of other points or another plane size");
+  const int stripes = bins->stripes;
   for (int parity = 0; parity < 2; ++parity) {
     const int per_plane = (stripes + 1 - parity) / 2;
 #pragma omp parallel for schedule(dynamic, 1) if (n > 1024)
     for (int task = 0; task < 3 * per_plane; ++task) {
       const int p = task / per_plane;
       const int s = 2 * (task % per_plane) + parity;
-      const int* st = start.data() + size_t(p) * (stripes + 1);
-      const int* ord = order.data() + size_t(p) * n;
+      const int* st = bins->start.data() + size_t(p) * (stripes + 1);
+      const int* ord = bins->order.data() + size_t(p) * n;
       T* base = dplanes + p * tp.plane_size();
       for (int k = st[s]; k < st[s + 1]; ++k) {
         const int i = ord[k];
@@ -181,10 +193,14 @@ template void triplane_forward(const TriplaneT<float>&, const float*, const floa
                                int, float*);
 template void triplane_forward(const TriplaneT<double>&, const double*, const double*,
                                const double*, int, double*);
+template TriplaneBins triplane_bins(const TriplaneT<float>&, const float*, const float*,
+                                    const float*, int);
+template TriplaneBins triplane_bins(const TriplaneT<double>&, const double*, const double*,
+                                    const double*, int);
 template void triplane_backward(const TriplaneT<float>&, const float*, const float*, const float*,
-                                int, const float*, float*);
+                                int, const float*, float*, const TriplaneBins*);
 template void triplane_backward(const TriplaneT<double>&, const double*, const double*,
-                                const double*, int, const double*, double*);
+                                const double*, int, const double*, double*, const TriplaneBins*);
 template void triplane_mark_texels(const TriplaneT<float>&, const float*, const float*,
                                    const float*, int, std::vector<uint8_t>*);
 template void triplane_mark_texels(const TriplaneT<double>&, const double*, const double*,

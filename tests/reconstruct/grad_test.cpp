@@ -4,10 +4,12 @@
 
 #include <omp.h>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <random>
 
+#include "core/error.hpp"
 #include "grad_check.hpp"
 #include "reconstruct/losses.hpp"
 #include "reconstruct/mlp.hpp"
@@ -125,6 +127,63 @@ TEST(ReconstructGrad, TriplaneBackwardIsThreadIndependent) {
   for (size_t q = 0; q < g1.size(); ++q) lhs += double(g1[q]) * tp.planes[q];
   for (size_t q = 0; q < feats.size(); ++q) rhs += double(dfeats[q]) * feats[q];
   EXPECT_NEAR(lhs, rhs, 1e-3 * std::max(1.0, std::abs(rhs)));
+}
+
+// The backward's bins: each plane's points by stripe of texel rows, in index order within a
+// stripe; bins made once give the same gradient as bins made per call, and bins of other points
+// are refused.
+TEST(ReconstructGrad, TriplaneBinsHoldThePointsByStripe) {
+  std::mt19937_64 rng(10);
+  Triplane tp;
+  const float lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
+  tp.init(40, 4, lo, hi, 3, 0.5f);
+  const int n = 3000;
+  std::vector<float> xs(n), ys(n), zs(n), dfeats(size_t(n) * tp.feature_dim());
+  std::uniform_real_distribution<float> u(-1.1f, 1.1f);
+  for (int i = 0; i < n; ++i)
+    xs[size_t(i)] = u(rng), ys[size_t(i)] = u(rng), zs[size_t(i)] = u(rng);
+  for (auto& d : dfeats) d = u(rng);
+  const TriplaneBins B = triplane_bins(tp, xs.data(), ys.data(), zs.data(), n);
+  ASSERT_EQ(B.order.size(), size_t(3) * n);
+  ASSERT_EQ(B.start.size(), size_t(3) * (B.stripes + 1));
+  // A point's texel in plane p, as the lookup computes it (u = x, v = y for plane 0, ...).
+  auto texel = [&](int p, int i) {
+    const float a = p == 2 ? ys[size_t(i)] : xs[size_t(i)];
+    const float b = p == 0 ? ys[size_t(i)] : zs[size_t(i)];
+    const int r = tp.res;
+    auto cell = [&](float x, int axis) {
+      const float t = std::clamp((x - tp.lo[axis]) / (tp.hi[axis] - tp.lo[axis]) * float(r - 1),
+                                 0.f, float(r - 1));
+      return std::min(int(t), r - 2);
+    };
+    return cell(b, p == 0 ? 1 : 2) * r + cell(a, p == 2 ? 1 : 0);
+  };
+  const int rows_per = (tp.res - 1 + B.stripes - 1) / B.stripes;
+  for (int p = 0; p < 3; ++p) {
+    const int* ord = B.order.data() + size_t(p) * n;
+    const int* st = B.start.data() + size_t(p) * (B.stripes + 1);
+    std::vector<int> seen(size_t(n), 0);
+    for (int k = 0; k < n; ++k) ++seen[size_t(ord[k])];
+    EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), n) << "plane " << p;
+    EXPECT_EQ(st[0], 0);
+    EXPECT_EQ(st[B.stripes], n);
+    for (int s = 0; s < B.stripes; ++s)
+      for (int k = st[s]; k < st[s + 1]; ++k) {
+        const int row = texel(p, ord[k]) / tp.res;
+        EXPECT_GE(row, s * rows_per);
+        EXPECT_LT(row, (s + 1) * rows_per);
+        if (k > st[s]) {
+          EXPECT_LT(ord[k - 1], ord[k]);
+        }
+      }
+  }
+  std::vector<float> g1(tp.size(), 0.f), g2(tp.size(), 0.f);
+  triplane_backward(tp, xs.data(), ys.data(), zs.data(), n, dfeats.data(), g1.data());
+  triplane_backward(tp, xs.data(), ys.data(), zs.data(), n, dfeats.data(), g2.data(), &B);
+  EXPECT_EQ(g1, g2);
+  EXPECT_THROW(
+      triplane_backward(tp, xs.data(), ys.data(), zs.data(), n - 1, dfeats.data(), g2.data(), &B),
+      Error);
 }
 
 TEST(ReconstructGrad, MlpMatchesFiniteDifferences) {
