@@ -13,6 +13,9 @@ namespace ks::raster {
 
 namespace {
 
+// How many list entries ahead the tile loop fetches a record.
+constexpr uint32_t kPrefetch = 8;
+
 // One tile of the forward pass. One SIMD vector is a block of BW x BH pixels (BW columns of BH
 // rows); the tile's pixel state is kept block by block (block_index). kFull: also the expected
 // depth and the backward's state (last contributor, final transmittance). Every block shape
@@ -55,6 +58,9 @@ template <int BW, int BH, bool kFull, class T, class Res>
   const V col_off = block_columns<V, BW, BH>(), row_off = block_rows<V, BW, BH>();
   const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
   for (uint32_t e = start; e < end && tile_live > 0; ++e) {
+    // The records are gathered through the tile's list: fetch a few ahead.
+    if (e + kPrefetch < end)
+      __builtin_prefetch(&out.packed[size_t(kRec) * out.point_list[e + kPrefetch]]);
     const T* rec = &out.packed[size_t(kRec) * out.point_list[e]];
     const T mx = rec[0] - T(ox), my = rec[1] - T(oy);
     const T a = rec[2], b = rec[3], c = rec[4], o = rec[5];
