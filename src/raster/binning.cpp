@@ -80,13 +80,30 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
   // Depth order of the visible Gaussians (one global radix sort).
   auto& keys = out.scratch_keys;
   auto& ids = out.scratch_ids;
-  keys.clear();
-  ids.clear();
-  for (size_t i = 0; i < N; ++i)
-    if (out.radii[i] > 0) {
-      keys.push_back(depth_key(out.depths[i]));
-      ids.push_back(uint32_t(i));
+  // The visible ones in id order: each thread counts its slice, then writes at its offset.
+  const int nth = N > 20000 ? omp_get_max_threads() : 1;
+  std::vector<size_t> slice_count(size_t(nth) + 1, 0);
+#pragma omp parallel num_threads(nth)
+  {
+    const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
+    const size_t b = N * tid / nt, e = N * (tid + 1) / nt;
+    size_t c = 0;
+    for (size_t i = b; i < e; ++i) c += out.radii[i] > 0;
+    slice_count[size_t(tid) + 1] = c;
+#pragma omp barrier
+#pragma omp single
+    {
+      for (int t = 0; t < nt; ++t) slice_count[size_t(t) + 1] += slice_count[size_t(t)];
+      keys.resize(slice_count[size_t(nt)]);
+      ids.resize(slice_count[size_t(nt)]);
     }
+    size_t w = slice_count[size_t(tid)];
+    for (size_t i = b; i < e; ++i)
+      if (out.radii[i] > 0) {
+        keys[w] = depth_key(out.depths[i]);
+        ids[w++] = uint32_t(i);
+      }
+  }
   radix_sort(keys, ids, out.scratch_keys2, out.scratch_ids2, out.scratch_counts);
   const size_t nvis = ids.size();
   // Render records in depth order (one 64-byte record for float), so that the tile loops read
@@ -94,9 +111,11 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
   // by id (a gather from the eight arrays here took three times as long).
   out.packed.resize(size_t(kRec) * nvis);
 #pragma omp parallel for schedule(static)
-  for (size_t k = 0; k < nvis; ++k)
+  for (size_t k = 0; k < nvis; ++k) {
+    if (k + 16 < nvis) __builtin_prefetch(&out.records[size_t(kRec) * ids[k + 16]]);
     std::memcpy(&out.packed[size_t(kRec) * k], &out.records[size_t(kRec) * ids[k]],
                 kRec * sizeof(T));
+  }
   timer.mark("sort");
 
   // Binning: per thread per tile counts, prefix sum, scatter in depth order (stable).

@@ -1,6 +1,7 @@
 #include "raster/rasterizer.hpp"
 
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <cmath>
 #include <functional>
@@ -58,6 +59,38 @@ TEST(Raster, ForwardMatchesReferenceSH3) {
   s.background[1] = 1.0f;
   for (unsigned seed = 10; seed <= 12; ++seed)
     expect_matches_reference(random_scene(o, seed), test_camera(67, 50, 0.61, 0.35), s);
+}
+
+// Enough Gaussians for the threaded paths of the depth sort and of the visible ones' compaction
+// (above 20,000), a third of them culled (behind the camera, or too transparent), on 1 and 2
+// threads: the same image, and the reference's.
+TEST(Raster, ManyGaussiansWithCulledOnesMatchTheReference) {
+  SceneOptions o;
+  o.n = 24000;
+  o.scale_min = 0.004, o.scale_max = 0.012;
+  o.opacity_min = 0.05, o.opacity_max = 0.5;
+  Gaussians g = random_scene(o, 41);
+  for (size_t i = 0; i < g.size(); i += 3) {
+    if (i % 2)
+      g.means[3 * i + 2] = 3.0f;  // behind the camera (at z = 2 looking at -z)
+    else
+      g.opacity_logits[i] = -8.f;  // opacity below 1 / 255
+  }
+  const Camera cam = test_camera(40, 30, 0.5, 0.5);
+  RasterSettings s;
+  s.background[2] = 0.4f;
+  const int saved = omp_get_max_threads();
+  RasterResult r1, r2;
+  omp_set_num_threads(1);
+  rasterize_forward(g, cam, s, r1);
+  omp_set_num_threads(2);
+  rasterize_forward(g, cam, s, r2);
+  omp_set_num_threads(saved);
+  EXPECT_EQ(r1.color.data, r2.color.data);
+  EXPECT_EQ(r1.n_contrib, r2.n_contrib);
+  const auto ref = reference_render(g, cam, s);
+  EXPECT_GE(test::psnr(ref.color, r2.color.data), 60.0);
+  EXPECT_GE(test::psnr(ref.alpha, r2.alpha.data), 60.0);
 }
 
 TEST(Raster, ForwardIsDeterministicAndReusesBuffers) {
