@@ -22,6 +22,30 @@ namespace {
 using test::expect_grad;
 using test::randv;
 
+// A float triplane over the box [-1, 1]^3 (res x res, C channels, noise from init_seed) and n
+// points with their upstream feature gradients: the points' coordinates drawn from
+// U(plo, phi) point by point, then the gradients from U(dlo, dhi).
+struct TriplaneScene {
+  Triplane tp;
+  int n = 0;
+  std::vector<float> xs, ys, zs, dfeats;
+};
+TriplaneScene triplane_scene(uint64_t seed, int res, int C, uint64_t init_seed, int n, float plo,
+                             float phi, float dlo, float dhi) {
+  std::mt19937_64 rng(seed);
+  TriplaneScene S;
+  const float lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
+  S.tp.init(res, C, lo, hi, init_seed, 0.5f);
+  S.n = n;
+  S.xs.resize(size_t(n)), S.ys.resize(size_t(n)), S.zs.resize(size_t(n));
+  S.dfeats.resize(size_t(n) * S.tp.feature_dim());
+  std::uniform_real_distribution<float> u(plo, phi), d(dlo, dhi);
+  for (int i = 0; i < n; ++i)
+    S.xs[size_t(i)] = u(rng), S.ys[size_t(i)] = u(rng), S.zs[size_t(i)] = u(rng);
+  for (auto& v : S.dfeats) v = d(rng);
+  return S;
+}
+
 }  // namespace
 
 TEST(ReconstructGrad, TriplaneMatchesFiniteDifferences) {
@@ -52,21 +76,13 @@ TEST(ReconstructGrad, TriplaneMatchesFiniteDifferences) {
   EXPECT_DOUBLE_EQ(feats[0], tp.planes[0]);
 }
 
-// The threaded backward (points binned into row stripes) equals a plain serial scatter, and is
-// bit-identical for 1 and 2 threads.
 // The marked texels hold every texel triplane_backward writes for the same points (with points
 // outside the box, clamped to its border), and their ranges cover exactly the marked texels.
 TEST(ReconstructGrad, TriplaneMarkedTexelsHoldEveryWrittenTexel) {
-  std::mt19937_64 rng(10);
-  Triplane tp;
-  const float lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
-  tp.init(20, 4, lo, hi, 3, 0.5f);
-  const int n = 60;
-  std::vector<float> xs(n), ys(n), zs(n), dfeats(size_t(n) * tp.feature_dim());
-  std::uniform_real_distribution<float> u(-1.2f, 0.3f), d(0.5f, 1.f);
-  for (int i = 0; i < n; ++i)
-    xs[size_t(i)] = u(rng), ys[size_t(i)] = u(rng), zs[size_t(i)] = u(rng);
-  for (auto& v : dfeats) v = d(rng);
+  const TriplaneScene S = triplane_scene(10, 20, 4, 3, 60, -1.2f, 0.3f, 0.5f, 1.f);
+  const Triplane& tp = S.tp;
+  const int n = S.n;
+  const std::vector<float>&xs = S.xs, &ys = S.ys, &zs = S.zs, &dfeats = S.dfeats;
   std::vector<float> g(tp.size(), 0.f);
   triplane_backward(tp, xs.data(), ys.data(), zs.data(), n, dfeats.data(), g.data());
   std::vector<uint8_t> marked;
@@ -98,17 +114,14 @@ TEST(ReconstructGrad, TriplaneMarkedTexelsHoldEveryWrittenTexel) {
   EXPECT_EQ(covered, marked);
 }
 
+// The threaded backward (points binned into row stripes) is bit-identical for 1 and 2 threads,
+// and the adjoint of the forward.
 TEST(ReconstructGrad, TriplaneBackwardIsThreadIndependent) {
-  std::mt19937_64 rng(9);
-  Triplane tp;
-  const float lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
-  tp.init(24, 6, lo, hi, 2, 0.5f);
-  const int n = 5000;  // above the parallel threshold
-  std::vector<float> xs(n), ys(n), zs(n), dfeats(size_t(n) * tp.feature_dim());
-  std::uniform_real_distribution<float> u(-1.1f, 1.1f);
-  for (int i = 0; i < n; ++i)
-    xs[size_t(i)] = u(rng), ys[size_t(i)] = u(rng), zs[size_t(i)] = u(rng);
-  for (auto& d : dfeats) d = u(rng);
+  // 5000 points: above the parallel threshold.
+  const TriplaneScene S = triplane_scene(9, 24, 6, 2, 5000, -1.1f, 1.1f, -1.1f, 1.1f);
+  const Triplane& tp = S.tp;
+  const int n = S.n;
+  const std::vector<float>&xs = S.xs, &ys = S.ys, &zs = S.zs, &dfeats = S.dfeats;
   auto run = [&](int threads) {
     const int saved = omp_get_max_threads();
     omp_set_num_threads(threads);
@@ -133,16 +146,10 @@ TEST(ReconstructGrad, TriplaneBackwardIsThreadIndependent) {
 // stripe; bins made once give the same gradient as bins made per call, and bins of other points
 // are refused.
 TEST(ReconstructGrad, TriplaneBinsHoldThePointsByStripe) {
-  std::mt19937_64 rng(10);
-  Triplane tp;
-  const float lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
-  tp.init(40, 4, lo, hi, 3, 0.5f);
-  const int n = 3000;
-  std::vector<float> xs(n), ys(n), zs(n), dfeats(size_t(n) * tp.feature_dim());
-  std::uniform_real_distribution<float> u(-1.1f, 1.1f);
-  for (int i = 0; i < n; ++i)
-    xs[size_t(i)] = u(rng), ys[size_t(i)] = u(rng), zs[size_t(i)] = u(rng);
-  for (auto& d : dfeats) d = u(rng);
+  const TriplaneScene S = triplane_scene(10, 40, 4, 3, 3000, -1.1f, 1.1f, -1.1f, 1.1f);
+  const Triplane& tp = S.tp;
+  const int n = S.n;
+  const std::vector<float>&xs = S.xs, &ys = S.ys, &zs = S.zs, &dfeats = S.dfeats;
   const TriplaneBins B = triplane_bins(tp, xs.data(), ys.data(), zs.data(), n);
   ASSERT_EQ(B.order.size(), size_t(3) * n);
   ASSERT_EQ(B.start.size(), size_t(3) * (B.stripes + 1));
