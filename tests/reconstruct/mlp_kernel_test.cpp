@@ -24,6 +24,12 @@ struct PathGuard {
   ~PathGuard() { mk::set_path(mk::Path::kAuto); }
 };
 
+// Every entry of A drawn from u, in memory order.
+template <class M, class Dist, class Rng>
+void fill_uniform(M& A, Dist& u, Rng& rng) {
+  for (Eigen::Index i = 0; i < A.size(); ++i) A.data()[i] = u(rng);
+}
+
 struct Result {
   Mlp::Mat Y, dX;
   MlpGrads g;
@@ -59,8 +65,8 @@ void compare(const std::vector<int>& dims, int n, uint64_t seed) {
   for (auto& b : m.b)
     for (int i = 0; i < b.size(); ++i) b(i) = 0.1f * u(rng);
   Mlp::Mat X(dims.front(), n), dY(dims.back(), n);
-  for (int i = 0; i < X.size(); ++i) X.data()[i] = u(rng);
-  for (int i = 0; i < dY.size(); ++i) dY.data()[i] = u(rng);
+  fill_uniform(X, u, rng);
+  fill_uniform(dY, u, rng);
   const Result ref = run(m, X, dY, mk::Path::kEigen, true);
   const Result got = run(m, X, dY, mk::Path::kAvx2, true);
   const double tol = 1e-5;
@@ -111,8 +117,8 @@ TEST(MlpKernels, AccumulatesAndIsThreadCountIndependent) {
   std::uniform_real_distribution<float> u(-1.f, 1.f);
   const int n = 5000;
   Mlp::Mat X(96, n), dY(9, n);
-  for (int i = 0; i < X.size(); ++i) X.data()[i] = u(rng);
-  for (int i = 0; i < dY.size(); ++i) dY.data()[i] = u(rng);
+  fill_uniform(X, u, rng);
+  fill_uniform(dY, u, rng);
   MlpCache cache;
   Mlp::Mat Y, dX;
   mlp_forward(m, X, cache, Y);
@@ -151,8 +157,8 @@ TEST(MlpKernels, InputNotKeptGivesTheSameResults) {
     std::uniform_real_distribution<float> u(-1.f, 1.f);
     const int n = 3001;
     Mlp::Mat X(96, n), dY(9, n);
-    for (int i = 0; i < X.size(); ++i) X.data()[i] = u(rng);
-    for (int i = 0; i < dY.size(); ++i) dY.data()[i] = u(rng);
+    fill_uniform(X, u, rng);
+    fill_uniform(dY, u, rng);
     MlpCache kept, borrowed;
     Mlp::Mat Y1, Y2, dX1, dX2;
     mlp_forward(m, X, kept, Y1);
@@ -206,9 +212,9 @@ TEST(MlpKernels, InputGradientAddedInPlace) {
     std::uniform_real_distribution<float> u(-1.f, 1.f);
     const int n = 2051;
     Mlp::Mat X(96, n), dYa(9, n), dYb(3, n);
-    for (int i = 0; i < X.size(); ++i) X.data()[i] = u(rng);
-    for (int i = 0; i < dYa.size(); ++i) dYa.data()[i] = u(rng);
-    for (int i = 0; i < dYb.size(); ++i) dYb.data()[i] = u(rng);
+    fill_uniform(X, u, rng);
+    fill_uniform(dYa, u, rng);
+    fill_uniform(dYb, u, rng);
     MlpCache ca, cb;
     Mlp::Mat Ya, Yb, dXa, dXb, dX;
     mlp_forward(a, X, ca, Ya, false);
