@@ -3,6 +3,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <string>
 
@@ -34,29 +35,32 @@ template <int CW>
   using L = Lanes<CW>;
   using V = typename L::V;
   auto at = [&](int l) { return i0 + size_t(l < n ? l : 0); };
-  // M = sum_k w_k A_{j_k}[0:3, :] (zero weights add nothing).
-  V M[12];
-  for (V& e : M) e = V{};
-  for (int q = 0; q < job.K; ++q) {
-    V w;
-    const float* T[CW];
-    for (int l = 0; l < CW; ++l) {
-      const size_t k = size_t(job.K) * at(l) + size_t(q);
-      w[l] = job.weights[k];
-      T[l] = job.tf + 12 * size_t(job.joints[k]);
+  using V4 = typename L::V4;
+  // M = sum_k w_k A_{j_k}[0:3, :] (zero weights add nothing), each lane's rows as 4-float pieces
+  // (a transform's 12 floats are contiguous), then turned into lanes.
+  V4 rows[3][CW], qrows[CW];
+  for (int l = 0; l < CW; ++l) {
+    const size_t i = at(l);
+    V4 r0{}, r1{}, r2{};
+    for (int q = 0; q < job.K; ++q) {
+      const size_t k = size_t(job.K) * i + size_t(q);
+      const float w = job.weights[k];
+      const float* T = job.tf + 12 * size_t(job.joints[k]);
+      r0 += w * L::load4(T);
+      r1 += w * L::load4(T + 4);
+      r2 += w * L::load4(T + 8);
     }
-    for (int e = 0; e < 12; ++e) {
-      V t;
-      for (int l = 0; l < CW; ++l) t[l] = T[l][e];
-      M[e] += w * t;
-    }
+    rows[0][l] = r0, rows[1][l] = r1, rows[2][l] = r2;
+    qrows[l] = L::load4(&job.c->quats[4 * i]);
   }
-  V x[3] = {}, qc[4] = {};
+  V M[12], qc[4];
+  for (int r = 0; r < 3; ++r) L::transpose4(rows[r], &M[4 * r]);
+  L::transpose4(qrows, qc);
+  V x[3] = {};
   for (int l = 0; l < CW; ++l) {
     const size_t i = at(l);
     for (int k = 0; k < 3; ++k)
       x[k][l] = job.c->means[3 * i + k] + (job.pose_offsets ? job.pose_offsets[3 * i + k] : 0.f);
-    for (int k = 0; k < 4; ++k) qc[k][l] = job.c->quats[4 * i + k];
   }
   V m[3];
   for (int r = 0; r < 3; ++r)
@@ -109,16 +113,22 @@ __attribute__((target("avx2"), flatten)) void lbs_range_avx2(const LbsJob& job, 
   lbs_range<8>(job, b, e);
 }
 
+std::atomic<bool> g_allow_avx2{true};
+
 bool lbs_avx2() {
 #if defined(__x86_64__)
   static const bool ok = __builtin_cpu_supports("avx2");
-  return ok;
+  return ok && g_allow_avx2.load(std::memory_order_relaxed);
 #else
   return false;
 #endif
 }
 
 }  // namespace
+
+bool lbs_allow_avx2(bool allow) {
+  return g_allow_avx2.exchange(allow);
+}
 
 void lbs_forward(const Gaussians& c, const float* pose_offsets, const std::vector<int>& skin_joints,
                  const std::vector<float>& skin_weights,

@@ -60,6 +60,10 @@ void lbs_forward(const Gaussians& canonical, const float* pose_offsets,
                  const std::vector<Eigen::Matrix4d>& transforms, Gaussians& posed,
                  LbsCache* cache = nullptr, const BackfaceCull* cull = nullptr,
                  bool keep_unposed = false);
+// lbs_forward works on blocks of 8 Gaussians (AVX2, where the CPU has it) or 4 (SSE2), the same
+// operations at both widths. Tests pin the baseline (false) to compare the two; returns the
+// previous setting.
+bool lbs_allow_avx2(bool allow);
 // dmeans (3N), dquats (4N) of the posed Gaussians -> canonical (overwrites dmeans_c, dquats_c).
 // Log-scales, opacities and SH pass through unchanged (the caller reuses their gradients).
 void lbs_backward(const LbsCache& cache, const std::vector<float>& dmeans_posed,

@@ -159,5 +159,47 @@ TEST(Lbs, KeepUnposedWritesWhatThePoseChanges) {
   EXPECT_EQ(kept.sh, fresh.sh);
 }
 
+// Blocks of 8 (AVX2) and of 4 (SSE2) pose alike, bit for bit: a count that leaves a partial block,
+// four weights per Gaussian over joints that repeat, back-face culling on.
+TEST(Lbs, BothBlockWidthsPoseAlike) {
+  std::mt19937_64 rng(4);
+  const int n = 37, J = 5, K = 4;
+  Gaussians c;
+  c.sh_degree = 0;
+  c.resize(n);
+  for (float& v : c.means) v = float(test::randv(1, rng)[0]);
+  for (float& v : c.quats) v = float(test::randv(1, rng)[0]);
+  for (float& v : c.opacity_logits) v = float(test::randv(1, rng)[0]);
+  std::vector<int> sj(size_t(n) * K);
+  std::vector<float> sw(sj.size());
+  for (size_t q = 0; q < sj.size(); ++q) {
+    sj[q] = int(std::uniform_int_distribution<int>(0, J - 1)(rng));
+    sw[q] = float(std::uniform_real_distribution<double>(0, 1)(rng));
+  }
+  std::vector<float> offsets(3 * size_t(n)), normals(3 * size_t(n));
+  for (float& v : offsets) v = 0.01f * float(test::randv(1, rng)[0]);
+  for (float& v : normals) v = float(test::randv(1, rng)[0]);
+  const auto T = random_transforms(J, rng);
+  BackfaceCull cull;
+  cull.normals = &normals;
+  cull.eye = Eigen::Vector3d(0.1, 0.2, 3.0);
+  cull.threshold = 0.2f;
+  Gaussians wide, narrow;
+  LbsCache cw, cn;
+  lbs_forward(c, offsets.data(), sj, sw, T, wide, &cw, &cull);
+  const bool was = lbs_allow_avx2(false);
+  lbs_forward(c, offsets.data(), sj, sw, T, narrow, &cn, &cull);
+  lbs_allow_avx2(was);
+  size_t culled = 0;
+  for (float o : narrow.opacity_logits) culled += o == kCulledOpacityLogit;
+  EXPECT_GT(culled, 0u);
+  EXPECT_LT(culled, size_t(n));
+  EXPECT_EQ(wide.means, narrow.means);
+  EXPECT_EQ(wide.quats, narrow.quats);
+  EXPECT_EQ(wide.opacity_logits, narrow.opacity_logits);
+  EXPECT_EQ(cw.M, cn.M);
+  EXPECT_EQ(cw.qblend, cn.qblend);
+}
+
 }  // namespace
 }  // namespace ks
