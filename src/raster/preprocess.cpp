@@ -32,9 +32,6 @@ void preprocess_forward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ras
     Cov3d<T> cov;
     if (!quat_scale_to_cov3d(&g.quats[4 * i], &g.log_scales[3 * i], cov)) continue;
     const M3<T>& S3 = cov.S;
-    T* cv = &out.cov3d[6 * i];
-    cv[0] = S3(0, 0), cv[1] = S3(0, 1), cv[2] = S3(0, 2), cv[3] = S3(1, 1), cv[4] = S3(1, 2),
-    cv[5] = S3(2, 2);
     const M2<T> S2 = project_cov3d(ewa_jacobian(cam, p), S3);
     const T A = S2(0, 0) + lp, B = S2(0, 1), C = S2(1, 1) + lp;
     const T det = A * C - B * B;
@@ -58,20 +55,28 @@ void preprocess_forward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ras
     const T mid = T(0.5) * (A + C);
     const T lam1 = mid + std::sqrt(std::max(T(0.1), mid * mid - det));
     out.radii[i] = std::max(1, int(std::ceil(3 * std::sqrt(lam1))));
-    out.means2d[2 * i] = u;
-    out.means2d[2 * i + 1] = v;
-    cov2d_to_conic(A, B, C, det, &out.conics[3 * i]);
     out.depths[i] = z;
-    out.opacities[i] = o;
+    T conic[3];
+    cov2d_to_conic(A, B, C, det, conic);
     // Colour from SH, view direction = mean - camera centre.
     T dist;
     const V3<T> dir = sh::view_direction(m, cam.centre, &dist);
-    sh::sh_to_color(deg, &g.sh[i * K * 3], dir, rec + 6, &out.sh_clamped[3 * i]);
+    uint8_t clamped[3];
+    sh::sh_to_color(deg, &g.sh[i * K * 3], dir, rec + 6, clamped);
     rec[0] = u, rec[1] = v;
-    rec[2] = out.conics[3 * i], rec[3] = out.conics[3 * i + 1], rec[4] = out.conics[3 * i + 2];
+    rec[2] = conic[0], rec[3] = conic[1], rec[4] = conic[2];
     rec[5] = o;
     rec[9] = z;
     rec[14] = rec[15] = 0;
+    if (out.image_only) continue;  // the rest is the backward's state
+    T* cv = &out.cov3d[6 * i];
+    cv[0] = S3(0, 0), cv[1] = S3(0, 1), cv[2] = S3(0, 2), cv[3] = S3(1, 1), cv[4] = S3(1, 2),
+    cv[5] = S3(2, 2);
+    out.means2d[2 * i] = u;
+    out.means2d[2 * i + 1] = v;
+    for (int k = 0; k < 3; ++k) out.conics[3 * i + k] = conic[k];
+    out.opacities[i] = o;
+    for (int k = 0; k < 3; ++k) out.sh_clamped[3 * i + k] = clamped[k];
   }
 }
 

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "core/simd.hpp"
 #include "raster/raster_internal.hpp"
@@ -56,14 +57,32 @@ template <int CW>
   const int deg = g.sh_degree, K = g.coeffs();
   // Gather the block (padding lanes repeat the first Gaussian, so that they compute finite
   // values; nothing of theirs is stored).
+  using V4 = typename L::V4;
   V mx, my, mz, qw, qx, qy, qz, l0, l1, l2, lo;
-  for (int l = 0; l < CW; ++l) {
-    const size_t i = i0 + size_t(l < n ? l : 0);
-    mx[l] = g.means[3 * i], my[l] = g.means[3 * i + 1], mz[l] = g.means[3 * i + 2];
-    qw[l] = g.quats[4 * i], qx[l] = g.quats[4 * i + 1], qy[l] = g.quats[4 * i + 2],
-    qz[l] = g.quats[4 * i + 3];
-    l0[l] = g.log_scales[3 * i], l1[l] = g.log_scales[3 * i + 1], l2[l] = g.log_scales[3 * i + 2];
-    lo[l] = g.opacity_logits[i];
+  {
+    // Four floats from each Gaussian's means and log-scales (the fourth is the next Gaussian's,
+    // unused), unless the block holds the last Gaussian.
+    const bool overread = i0 + size_t(n) < g.size();
+    V4 rm[CW], rq[CW], rs[CW];
+    for (int l = 0; l < CW; ++l) {
+      const size_t i = i0 + size_t(l < n ? l : 0);
+      rq[l] = L::load4(&g.quats[4 * i]);
+      if (overread) {
+        rm[l] = L::load4(&g.means[3 * i]);
+        rs[l] = L::load4(&g.log_scales[3 * i]);
+      } else {
+        rm[l] = V4{g.means[3 * i], g.means[3 * i + 1], g.means[3 * i + 2], 0.f};
+        rs[l] = V4{g.log_scales[3 * i], g.log_scales[3 * i + 1], g.log_scales[3 * i + 2], 0.f};
+      }
+      lo[l] = g.opacity_logits[i];
+    }
+    V t[4];
+    L::transpose4(rm, t);
+    mx = t[0], my = t[1], mz = t[2];
+    L::transpose4(rs, t);
+    l0 = t[0], l1 = t[1], l2 = t[2];
+    L::transpose4(rq, t);
+    qw = t[0], qx = t[1], qy = t[2], qz = t[3];
   }
   const auto& R = cam.R;
   // World -> camera.
@@ -133,6 +152,22 @@ template <int CW>
     }
     rgb[ch] = c;
   }
+  // The render records, 16 floats a Gaussian as four pieces of 4 (written for culled lanes too:
+  // only visible Gaussians' records are read).
+  const V cn0 = C / det, cn1 = -B / det, cn2 = A / det;
+  const V zero = L::splat(0.f);
+  const V piece[4][4] = {{u, v, cn0, cn1},
+                         {cn2, o, L::max(rgb[0], zero), L::max(rgb[1], zero)},
+                         {L::max(rgb[2], zero), pz, L::max(fx0, zero), L::min(fx1, L::splat(Wm))},
+                         {L::max(fy0, zero), L::min(fy1, L::splat(Hm)), zero, zero}};
+  for (int c = 0; c < 4; ++c) {
+    V4 rows[CW];
+    L::untranspose4(piece[c], rows);
+    for (int l = 0; l < n; ++l)
+      std::memcpy(&out.records[size_t(kRec) * (i0 + size_t(l)) + size_t(4 * c)], &rows[l],
+                  sizeof(V4));
+  }
+  const bool full = !out.image_only;  // also the backward's per-Gaussian state
   for (int l = 0; l < n; ++l) {
     const size_t i = i0 + size_t(l);
     if (!ok[l]) {
@@ -140,23 +175,15 @@ template <int CW>
       continue;
     }
     out.radii[i] = std::max(1, int(rad[l]));
+    out.depths[i] = pz[l];
+    if (!full) continue;
     float* cv = &out.cov3d[6 * i];
     cv[0] = S00[l], cv[1] = S01[l], cv[2] = S02[l], cv[3] = S11[l], cv[4] = S12[l], cv[5] = S22[l];
     out.means2d[2 * i] = u[l], out.means2d[2 * i + 1] = v[l];
     float* cn = &out.conics[3 * i];
-    cn[0] = C[l] / det[l], cn[1] = -B[l] / det[l], cn[2] = A[l] / det[l];
-    out.depths[i] = pz[l];
+    cn[0] = cn0[l], cn[1] = cn1[l], cn[2] = cn2[l];
     out.opacities[i] = o[l];
-    float* rec = &out.records[size_t(kRec) * i];
-    rec[0] = u[l], rec[1] = v[l], rec[2] = cn[0], rec[3] = cn[1], rec[4] = cn[2], rec[5] = o[l];
-    for (int ch = 0; ch < 3; ++ch) {
-      out.sh_clamped[3 * i + ch] = rgb[ch][l] < 0;
-      rec[6 + ch] = std::max(rgb[ch][l], 0.0f);
-    }
-    rec[9] = pz[l];
-    rec[10] = std::max(fx0[l], 0.0f), rec[11] = std::min(fx1[l], Wm);
-    rec[12] = std::max(fy0[l], 0.0f), rec[13] = std::min(fy1[l], Hm);
-    rec[14] = rec[15] = 0;
+    for (int ch = 0; ch < 3; ++ch) out.sh_clamped[3 * i + ch] = rgb[ch][l] < 0;
   }
 }
 

@@ -81,12 +81,13 @@ void rasterize_forward(const GaussiansT<T>& g, const Camera& camera, const Raste
   else
     shape_image(out.depth, W, H, 1);
   out.radii.resize(N);
-  out.means2d.resize(2 * N);
-  out.conics.resize(3 * N);
   out.depths.resize(N);
-  out.cov3d.resize(6 * N);
-  out.sh_clamped.resize(3 * N);
-  out.opacities.resize(N);
+  const size_t nb = s.image_only ? 0 : N;  // the backward's per-Gaussian state
+  out.means2d.resize(2 * nb);
+  out.conics.resize(3 * nb);
+  out.cov3d.resize(6 * nb);
+  out.sh_clamped.resize(3 * nb);
+  out.opacities.resize(nb);
   out.records.resize(size_t(raster::kRec) * N);
   out.final_T.resize(s.image_only ? 0 : size_t(W) * H);
   out.n_contrib.resize(s.image_only ? 0 : size_t(W) * H);

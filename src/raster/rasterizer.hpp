@@ -34,7 +34,8 @@ struct RasterSettings {
   RasterKernel kernel = RasterKernel::kAuto;
   // Colour and alpha only (playback, evaluation): no expected depth and none of the per-pixel
   // state the backward pass needs, which the compositing then neither accumulates nor writes
-  // (depth, final_T and n_contrib come back empty; rasterize_backward refuses such a result).
+  // (depth, final_T, n_contrib and the per-Gaussian means2d, conics, cov3d, sh_clamped and
+  // opacities come back empty; rasterize_backward refuses such a result).
   bool image_only = false;
 };
 
@@ -53,10 +54,10 @@ struct RasterResultT {
   bool image_only = false;  // the settings' image_only of the forward that filled this
   // Per Gaussian (N).
   std::vector<int> radii;  // pixel radius ceil(3 sigma_max), 0 = not visible (culled)
-  std::vector<T> means2d;  // 2N, pixel coordinates
-  // Internal state for backward (projected conics, colours, tile lists, per-pixel counts).
+  std::vector<T> depths;   // N camera-space z
+  // State for the backward (empty after an image_only forward, which does not need it).
+  std::vector<T> means2d;           // 2N, pixel coordinates
   std::vector<T> conics;            // 3N (a, b, c) of the inverse 2D covariance
-  std::vector<T> depths;            // N camera-space z
   std::vector<T> cov3d;             // 6N (xx, xy, xz, yy, yz, zz)
   std::vector<uint8_t> sh_clamped;  // 3N
   std::vector<T> opacities;         // N activated opacity

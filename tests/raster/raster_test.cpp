@@ -211,6 +211,10 @@ TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
     EXPECT_TRUE(img.depth.data.empty());
     EXPECT_TRUE(img.final_T.empty());
     EXPECT_TRUE(img.n_contrib.empty());
+    EXPECT_EQ(img.radii, full.radii);
+    EXPECT_EQ(img.depths, full.depths);
+    EXPECT_TRUE(img.means2d.empty() && img.conics.empty() && img.cov3d.empty() &&
+                img.opacities.empty() && img.sh_clamped.empty());
     Image dc(cam.width, cam.height, 3);
     RasterGrads gr;
     EXPECT_THROW(rasterize_backward(g, cam, s, img, dc, Image(), gr), Error);
@@ -219,7 +223,22 @@ TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
     rasterize_forward(g, cam, s, img);
     EXPECT_EQ(img.depth.data, full.depth.data);
     EXPECT_EQ(img.n_contrib, full.n_contrib);
+    EXPECT_EQ(img.means2d, full.means2d);
+    EXPECT_EQ(img.conics, full.conics);
+    EXPECT_EQ(img.cov3d, full.cov3d);
+    EXPECT_EQ(img.sh_clamped, full.sh_clamped);
   }
+  // The double path alike.
+  const GaussiansD gd = GaussiansD::from(g);
+  RasterSettings s;
+  RasterResultD full, img;
+  rasterize_forward(gd, cam, s, full);
+  s.image_only = true;
+  rasterize_forward(gd, cam, s, img);
+  EXPECT_EQ(img.color.data, full.color.data);
+  EXPECT_EQ(img.radii, full.radii);
+  EXPECT_TRUE(img.means2d.empty() && img.conics.empty() && img.cov3d.empty() &&
+              img.opacities.empty() && img.sh_clamped.empty());
 }
 
 TEST(Raster, BaselineAndAvx2KernelsAgree) {
