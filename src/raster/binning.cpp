@@ -106,22 +106,34 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
   }
   radix_sort(keys, ids, out.scratch_keys2, out.scratch_ids2, out.scratch_counts);
   const size_t nvis = ids.size();
-  // Render records in depth order (one 64-byte record for float), so that the tile loops read
-  // contiguous records: one record copied per visible Gaussian from those the projection wrote
-  // by id (a gather from the eight arrays here took three times as long).
-  out.packed.resize(size_t(kRec) * nvis);
-#pragma omp parallel for schedule(static)
-  for (size_t k = 0; k < nvis; ++k) {
-    if (k + 16 < nvis) __builtin_prefetch(&out.records[size_t(kRec) * ids[k + 16]]);
-    std::memcpy(&out.packed[size_t(kRec) * k], &out.records[size_t(kRec) * ids[k]],
-                kRec * sizeof(T));
-  }
   timer.mark("sort");
 
-  // Binning: per thread per tile counts, prefix sum, scatter in depth order (stable).
+  // Render records in depth order (one 64-byte record for float), so that the tile loops read
+  // contiguous records: one record copied per visible Gaussian from those the projection wrote
+  // by id (a gather from the eight arrays here took three times as long). An image-only forward
+  // (no backward to read ranks) skips the copy: the tile lists hold Gaussian ids, and the records
+  // by id become `packed` (the two buffers swap below).
+  // Binning in the same pass over each thread's contiguous slice of the depth order: the
+  // thread's per-tile counts from the tile rectangles the projection wrote, then a prefix sum
+  // over (tile, thread) gives every thread its write offsets, and each scatters its slice. Slices
+  // are in depth order, so every tile list comes out depth-sorted (stable).
+  const bool by_id = out.image_only;
+  if (!by_id) {
+    out.packed.resize(size_t(kRec) * nvis);
+#pragma omp parallel for schedule(static)
+    for (size_t k = 0; k < nvis; ++k) {
+      if (k + 16 < nvis) __builtin_prefetch(&out.records[size_t(kRec) * ids[k + 16]]);
+      std::memcpy(&out.packed[size_t(kRec) * k], &out.records[size_t(kRec) * ids[k]],
+                  kRec * sizeof(T));
+    }
+  }
+  uint32_t team = 1;
   const int maxthreads = omp_get_max_threads();
   auto& counts = out.scratch_counts;
   counts.resize(size_t(maxthreads) * ntiles);
+  const uint32_t* rects = out.tile_rects.data();
+  out.scratch_keys2.resize(2 * nvis);  // free after the sort: the rectangles in depth order
+  uint32_t* sorted_rects = out.scratch_keys2.data();
 #pragma omp parallel
   {
     const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
@@ -129,11 +141,23 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
     uint32_t* cnt = &counts[size_t(tid) * ntiles];
     std::fill(cnt, cnt + ntiles, 0u);
     for (size_t k = b; k < e; ++k) {
-      const T* r = &out.packed[size_t(kRec) * k + 10];
-      const int tx0 = int(r[0]) / kTS, tx1 = int(r[1]) / kTS, ty0 = int(r[2]) / kTS,
-                ty1 = int(r[3]) / kTS;
-      for (int ty = ty0; ty <= ty1; ++ty)
-        for (int tx = tx0; tx <= tx1; ++tx) ++cnt[ty * tiles_x + tx];
+      const uint32_t id = ids[k];
+      if (k + 16 < e) __builtin_prefetch(&rects[2 * size_t(ids[k + 16])]);
+      const uint32_t xr = rects[2 * id], yr = rects[2 * id + 1];
+      sorted_rects[2 * k] = xr, sorted_rects[2 * k + 1] = yr;
+      const int tx0 = int(xr & 0xffff), tx1 = int(xr >> 16), ty0 = int(yr & 0xffff),
+                ty1 = int(yr >> 16);
+      const int nx = tx1 - tx0, ny = ty1 - ty0, t = ty0 * tiles_x + tx0;
+      if ((nx | ny) <= 1) {  // at most 2 x 2 tiles (most Gaussians): no loop to mispredict
+        const int dy = ny * tiles_x;
+        ++cnt[t];
+        cnt[t + nx] += uint32_t(nx);
+        cnt[t + dy] += uint32_t(ny);
+        cnt[t + nx + dy] += uint32_t(nx & ny);
+      } else {
+        for (int ty = ty0; ty <= ty1; ++ty)
+          for (int tx = tx0; tx <= tx1; ++tx) ++cnt[ty * tiles_x + tx];
+      }
     }
 #pragma omp barrier
 #pragma omp single
@@ -149,16 +173,37 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
         }
         out.tile_ranges[2 * t + 1] = off;
       }
-      out.point_list.resize(off);
+      out.point_list.resize(off + uint32_t(nt));  // one spare slot a thread (below)
+      team = uint32_t(nt);
     }
+    uint32_t* list = out.point_list.data();
+    const uint32_t spare = uint32_t(out.point_list.size()) - uint32_t(nt - tid);
     for (size_t k = b; k < e; ++k) {
-      const T* r = &out.packed[size_t(kRec) * k + 10];
-      const int tx0 = int(r[0]) / kTS, tx1 = int(r[1]) / kTS, ty0 = int(r[2]) / kTS,
-                ty1 = int(r[3]) / kTS;
-      for (int ty = ty0; ty <= ty1; ++ty)
-        for (int tx = tx0; tx <= tx1; ++tx) out.point_list[cnt[ty * tiles_x + tx]++] = uint32_t(k);
+      const uint32_t id = by_id ? ids[k] : uint32_t(k);
+      const uint32_t xr = sorted_rects[2 * k], yr = sorted_rects[2 * k + 1];
+      const int tx0 = int(xr & 0xffff), tx1 = int(xr >> 16), ty0 = int(yr & 0xffff),
+                ty1 = int(yr >> 16);
+      const int nx = tx1 - tx0, ny = ty1 - ty0, t = ty0 * tiles_x + tx0;
+      if ((nx | ny) <= 1) {
+        // The three optional tiles write to this thread's spare slot when absent.
+        const int dy = ny * tiles_x;
+        list[cnt[t]++] = id;
+        auto put = [&](int tt, int on) {
+          const uint32_t at = on ? cnt[tt] : spare;
+          list[at] = id;
+          cnt[tt] += uint32_t(on);
+        };
+        put(t + nx, nx);
+        put(t + dy, ny);
+        put(t + nx + dy, nx & ny);
+      } else {
+        for (int ty = ty0; ty <= ty1; ++ty)
+          for (int tx = tx0; tx <= tx1; ++tx) list[cnt[ty * tiles_x + tx]++] = id;
+      }
     }
   }
+  out.point_list.resize(out.point_list.size() - team);
+  if (by_id) out.packed.swap(out.records);
   timer.mark("bin");
 }
 

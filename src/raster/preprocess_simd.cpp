@@ -156,10 +156,15 @@ template <int CW>
   // only visible Gaussians' records are read).
   const V cn0 = C / det, cn1 = -B / det, cn2 = A / det;
   const V zero = L::splat(0.f);
+  const V x0 = L::max(fx0, zero), x1 = L::min(fx1, L::splat(Wm)), y0 = L::max(fy0, zero),
+          y1 = L::min(fy1, L::splat(Hm));
   const V piece[4][4] = {{u, v, cn0, cn1},
                          {cn2, o, L::max(rgb[0], zero), L::max(rgb[1], zero)},
-                         {L::max(rgb[2], zero), pz, L::max(fx0, zero), L::min(fx1, L::splat(Wm))},
-                         {L::max(fy0, zero), L::min(fy1, L::splat(Hm)), zero, zero}};
+                         {L::max(rgb[2], zero), pz, x0, x1},
+                         {y0, y1, zero, zero}};
+  // The tiles the pixel rectangle touches, two words a Gaussian (binning.cpp).
+  auto tiles = [](V a) { return __builtin_convertvector(a, I) / kTS; };
+  const I trx = tiles(x0) | tiles(x1) << 16, try_ = tiles(y0) | tiles(y1) << 16;
   for (int c = 0; c < 4; ++c) {
     V4 rows[CW];
     L::untranspose4(piece[c], rows);
@@ -176,6 +181,7 @@ template <int CW>
     }
     out.radii[i] = std::max(1, int(rad[l]));
     out.depths[i] = pz[l];
+    out.tile_rects[2 * i] = uint32_t(trx[l]), out.tile_rects[2 * i + 1] = uint32_t(try_[l]);
     if (!full) continue;
     float* cv = &out.cov3d[6 * i];
     cv[0] = S00[l], cv[1] = S01[l], cv[2] = S02[l], cv[3] = S11[l], cv[4] = S12[l], cv[5] = S22[l];

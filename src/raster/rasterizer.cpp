@@ -82,6 +82,7 @@ void rasterize_forward(const GaussiansT<T>& g, const Camera& camera, const Raste
     shape_image(out.depth, W, H, 1);
   out.radii.resize(N);
   out.depths.resize(N);
+  out.tile_rects.resize(2 * N);
   const size_t nb = s.image_only ? 0 : N;  // the backward's per-Gaussian state
   out.means2d.resize(2 * nb);
   out.conics.resize(3 * nb);

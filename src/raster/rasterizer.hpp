@@ -55,6 +55,8 @@ struct RasterResultT {
   // Per Gaussian (N).
   std::vector<int> radii;  // pixel radius ceil(3 sigma_max), 0 = not visible (culled)
   std::vector<T> depths;   // N camera-space z
+  // 2N: the tiles a visible Gaussian's pixel rectangle touches, tx0 | tx1 << 16, ty0 | ty1 << 16
+  std::vector<uint32_t> tile_rects;
   // State for the backward (empty after an image_only forward, which does not need it).
   std::vector<T> means2d;           // 2N, pixel coordinates
   std::vector<T> conics;            // 3N (a, b, c) of the inverse 2D covariance
@@ -63,7 +65,9 @@ struct RasterResultT {
   std::vector<T> opacities;         // N activated opacity
   // Visible Gaussians in depth order: scratch_ids[rank] = Gaussian id, packed[16 rank ..] =
   // render record (mean2d, conic, opacity, SH colour, depth, pixel rect x0 x1 y0 y1 inclusive);
-  // records: the same by id as the projection writes them (16 N, valid where radii > 0).
+  // records: the same by id as the projection writes them (16 N, valid where radii > 0). After
+  // an image_only forward, packed holds the records by id (nothing is copied) and point_list
+  // holds ids; records is scratch.
   std::vector<T> packed, records;
   std::vector<uint32_t> point_list;   // depth ranks (see packed), tile-major then depth
   std::vector<uint32_t> tile_ranges;  // 2 * tiles: [start, end) into point_list
