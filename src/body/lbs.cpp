@@ -141,10 +141,6 @@ void lbs_forward(const Gaussians& c, const float* pose_offsets, const std::vecto
     throw Error("lbs_forward: skin joints/weights must be K per Gaussian");
   if (cull && !(cull->threshold >= 0.f && cull->threshold <= 1.f))
     throw Error("lbs_forward: the back-face cull threshold must be in [0, 1]");
-  for (const int j : skin_joints)
-    if (j < 0 || size_t(j) >= transforms.size())
-      throw Error("lbs_forward: skin joint " + std::to_string(j) + " out of range (" +
-                  std::to_string(transforms.size()) + " transforms)");
   posed.sh_degree = c.sh_degree;
   posed.means.resize(3 * size_t(n));
   posed.quats.resize(4 * size_t(n));
@@ -182,14 +178,30 @@ void lbs_forward(const Gaussians& c, const float* pose_offsets, const std::vecto
   constexpr size_t kChunk = 512;
   const long chunks = long((size_t(n) + kChunk - 1) / kChunk);
   const bool wide = lbs_avx2();
-#pragma omp parallel for schedule(static) if (n > 1024)
+  const uint32_t J = uint32_t(transforms.size());
+  bool bad = false;
+#pragma omp parallel for schedule(static) if (n > 1024) reduction(|| : bad)
   for (long ch = 0; ch < chunks; ++ch) {
     const size_t b = size_t(ch) * kChunk, e = std::min(size_t(n), b + kChunk);
+    // The chunk's joints in range before any is used: one branch-free pass (a negative index
+    // wraps to a large one).
+    uint32_t largest = 0;
+    for (size_t q = size_t(K) * b; q < size_t(K) * e; ++q)
+      largest = std::max(largest, uint32_t(skin_joints[q]));
+    if (largest >= J) {
+      bad = true;
+      continue;
+    }
     if (wide)
       lbs_range_avx2(job, b, e);
     else
       lbs_range_sse2(job, b, e);
   }
+  if (bad)
+    for (const int j : skin_joints)
+      if (j < 0 || uint32_t(j) >= J)
+        throw Error("lbs_forward: skin joint " + std::to_string(j) + " out of range (" +
+                    std::to_string(J) + " transforms)");
 }
 
 void lbs_backward(const LbsCache& cache, const std::vector<float>& dmp,

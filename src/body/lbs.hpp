@@ -54,7 +54,7 @@ struct LbsCache {
 // be nullptr (playback). keep_unposed: `posed` holds these canonical Gaussians' scales and SH
 // from an earlier call (playback of one avatar), so they are not copied again (the SH are most
 // of the bytes); a size mismatch copies them anyway. OpenMP over Gaussians. Throws ks::Error on
-// inconsistent sizes.
+// inconsistent sizes and on a skin joint out of range (then `posed` holds no valid pose).
 void lbs_forward(const Gaussians& canonical, const float* pose_offsets,
                  const std::vector<int>& skin_joints, const std::vector<float>& skin_weights,
                  const std::vector<Eigen::Matrix4d>& transforms, Gaussians& posed,

@@ -159,6 +159,26 @@ TEST(Lbs, KeepUnposedWritesWhatThePoseChanges) {
   EXPECT_EQ(kept.sh, fresh.sh);
 }
 
+TEST(Lbs, SkinJointOutOfRangeIsAnError) {
+  Gaussians c;
+  c.resize(3);
+  std::mt19937_64 rng(2);
+  const auto T = random_transforms(4, rng);
+  const std::vector<float> sw(6, 0.5f);
+  Gaussians posed;
+  for (const int bad : {-1, 4, 1000}) {
+    const std::vector<int> sj = {0, 1, 2, bad, 3, 0};
+    try {
+      lbs_forward(c, nullptr, sj, sw, T, posed);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("skin joint " + std::to_string(bad) + " out of range"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 // Blocks of 8 (AVX2) and of 4 (SSE2) pose alike, bit for bit: a count that leaves a partial block,
 // four weights per Gaussian over joints that repeat, back-face culling on.
 TEST(Lbs, BothBlockWidthsPoseAlike) {
