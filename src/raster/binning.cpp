@@ -19,36 +19,42 @@ inline uint32_t depth_key(T z) {
   return u;  // z > 0: the float bits are monotone in z
 }
 
-// Stable LSD radix sort of (key, id) pairs by key: three passes of 11 bits, each over the
-// threads (per-thread digit counts, offsets bucket-major then thread so that equal keys keep
-// their order, then each thread scatters its own range), a pass whose digit is the same for
-// every key skipped. `hist` is scratch.
+// Stable LSD radix sort of (key, id) pairs by key, all keys in [lo, hi]: on key - lo, in as few
+// passes of at most 12 bits as the span needs (two for depths within a factor of two, three of
+// 11 bits at most), each over the threads (per-thread digit counts, offsets bucket-major then
+// thread so that equal keys keep their order, then each thread scatters its own range), a pass
+// whose digit is the same for every key skipped. `hist` is scratch.
 void radix_sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& ids,
                 std::vector<uint32_t>& keys2, std::vector<uint32_t>& ids2,
-                std::vector<uint32_t>& hist) {
-  constexpr int kBits = 11, kBuckets = 1 << kBits;
+                std::vector<uint32_t>& hist, uint32_t lo, uint32_t hi) {
+  const int span_bits = hi > lo ? 32 - __builtin_clz(hi - lo) : 0;
+  const int passes = span_bits <= 24 ? (span_bits + 11) / 12 : 3;
+  const int bits = passes > 0 ? (span_bits + passes - 1) / passes : 0;
+  const int buckets = 1 << bits;
+  const uint32_t mask = uint32_t(buckets - 1);
   const size_t n = keys.size();
   keys2.resize(n);
   ids2.resize(n);
   const int maxthreads = n > 20000 ? omp_get_max_threads() : 1;
-  hist.resize(size_t(maxthreads) * kBuckets);
-  for (int shift = 0; shift < 32; shift += kBits) {
+  hist.resize(size_t(maxthreads) * buckets);
+  for (int pass = 0; pass < passes; ++pass) {
+    const int shift = pass * bits;
     bool trivial = false;
 #pragma omp parallel num_threads(maxthreads)
     {
       const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
       const size_t b = n * tid / nt, e = n * (tid + 1) / nt;
-      uint32_t* h = &hist[size_t(tid) * kBuckets];
-      std::fill(h, h + kBuckets, 0u);
-      for (size_t i = b; i < e; ++i) ++h[(keys[i] >> shift) & (kBuckets - 1)];
+      uint32_t* h = &hist[size_t(tid) * buckets];
+      std::fill(h, h + buckets, 0u);
+      for (size_t i = b; i < e; ++i) ++h[((keys[i] - lo) >> shift) & mask];
 #pragma omp barrier
 #pragma omp single
       {
         uint32_t sum = 0;
-        for (int d = 0; d < kBuckets; ++d) {
+        for (int d = 0; d < buckets; ++d) {
           uint32_t total = 0;
           for (int t = 0; t < nt; ++t) {
-            uint32_t& c = hist[size_t(t) * kBuckets + d];
+            uint32_t& c = hist[size_t(t) * buckets + d];
             const uint32_t tmp = c;
             c = sum;
             sum += tmp;
@@ -59,7 +65,7 @@ void radix_sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& ids,
       }
       if (!trivial)
         for (size_t i = b; i < e; ++i) {
-          const uint32_t d = h[(keys[i] >> shift) & (kBuckets - 1)]++;
+          const uint32_t d = h[((keys[i] - lo) >> shift) & mask]++;
           keys2[d] = keys[i];
           ids2[d] = ids[i];
         }
@@ -83,7 +89,8 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
   // The visible ones in id order: each thread counts its slice, then writes at its offset.
   const int nth = N > 20000 ? omp_get_max_threads() : 1;
   std::vector<size_t> slice_count(size_t(nth) + 1, 0);
-#pragma omp parallel num_threads(nth)
+  uint32_t lo = ~uint32_t(0), hi = 0;  // the keys' range
+#pragma omp parallel num_threads(nth) reduction(min : lo) reduction(max : hi)
   {
     const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
     const size_t b = N * tid / nt, e = N * (tid + 1) / nt;
@@ -100,11 +107,13 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
     size_t w = slice_count[size_t(tid)];
     for (size_t i = b; i < e; ++i)
       if (out.radii[i] > 0) {
-        keys[w] = depth_key(out.depths[i]);
+        const uint32_t key = depth_key(out.depths[i]);
+        lo = std::min(lo, key), hi = std::max(hi, key);
+        keys[w] = key;
         ids[w++] = uint32_t(i);
       }
   }
-  radix_sort(keys, ids, out.scratch_keys2, out.scratch_ids2, out.scratch_counts);
+  radix_sort(keys, ids, out.scratch_keys2, out.scratch_ids2, out.scratch_counts, lo, hi);
   const size_t nvis = ids.size();
   timer.mark("sort");
 
