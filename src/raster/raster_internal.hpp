@@ -179,6 +179,24 @@ constexpr int block_index(int c, int r) {
 constexpr int row_index(int c, int r) {
   return block_index<kTS, 1>(c, r);
 }
+// The blocks of block rows br0..br1 and block columns q0..q1 as bits (block br * kTS / BW + q),
+// for tiles of at most 64 blocks: the tile kernels skip a Gaussian whose box holds none of the
+// blocks still to be done.
+template <int BW, int BH>
+[[gnu::always_inline]] inline uint64_t box_blocks(int q0, int q1, int br0, int br1) {
+  constexpr int kBPR = kTS / BW;
+  static_assert(kTilePixels / (BW * BH) <= 64, "one bit a block");
+  constexpr uint64_t kRowFirst = [] {
+    uint64_t m = 0;
+    for (int br = 0; br < kTilePixels / (BW * BH) / kBPR; ++br) m |= uint64_t(1) << (br * kBPR);
+    return m;
+  }();
+  const uint64_t rows_in = kRowFirst & (~uint64_t(0) >> (63 - ((br1 + 1) * kBPR - 1))) &
+                           ~((uint64_t(1) << (br0 * kBPR)) - 1);
+  const uint64_t cols_in = (uint64_t(2) << q1) - (uint64_t(1) << q0);
+  return rows_in * cols_in;  // each row's first-column bit spread over the columns
+}
+
 // Each lane's column (l % BW) and row (l / BW) within its block.
 template <class V, int BW, int BH>
 [[gnu::always_inline]] inline V block_columns() {

@@ -101,6 +101,10 @@ template <int BW, int BH, class T, class Res, class Img>
   uint32_t bid[kBatch];
   for (int hi = jmax; hi > 0; hi -= kBatch) {
     const int lo = std::max(0, hi - kBatch);
+    // The blocks some Gaussian of this batch can reach (a pixel's last contributor is beyond
+    // the batch's first): a Gaussian whose box holds none of them is skipped whole.
+    uint64_t active = 0;
+    for (int q = 0; q < kBlocks; ++q) active |= uint64_t(block_max[q] > lo) << q;
     for (int j = lo; j < hi; ++j) {
       const int k = j - lo;
       const uint32_t rank = fwd.point_list[start + j];
@@ -122,6 +126,7 @@ template <int BW, int BH, class T, class Res, class Img>
       V s_mx{}, s_my{}, s_a{}, s_b{}, s_c{}, s_o{}, s_r{}, s_g{}, s_bl{};
       VI any{};  // lanes where this Gaussian contributed to some pixel of the tile
       const int q0 = bx0[k], q1 = bx1[k];
+      if (!(active & box_blocks<BW, BH>(q0, q1, by0[k], by1[k]))) continue;
       // Same expressions as the forward pass, so the skip decisions agree bit for bit.
       V dxs[kBPR], hxs[kBPR];
       for (int q = q0; q <= q1; ++q) {

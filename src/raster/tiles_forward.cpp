@@ -47,14 +47,8 @@ template <int BW, int BH, bool kFull, class T, class Res>
   // The live blocks as bits (block br * kBPR + q), and a bit in each block row's first column:
   // a Gaussian whose box holds no live block is skipped whole (at a silhouette the background
   // pixels keep a tile going through the body's deeper layers).
-  static_assert(kBlocks <= 64, "one bit a block");
   uint64_t live = 0;
   for (int q = 0; q < kBlocks; ++q) live |= uint64_t(block_live[q] > 0) << q;
-  constexpr uint64_t kRowFirst = [] {
-    uint64_t m = 0;
-    for (int br = 0; br < kBlocks / kBPR; ++br) m |= uint64_t(1) << (br * kBPR);
-    return m;
-  }();
   const V col_off = block_columns<V, BW, BH>(), row_off = block_rows<V, BW, BH>();
   const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
   for (uint32_t e = start; e < end && tile_live > 0; ++e) {
@@ -69,10 +63,7 @@ template <int BW, int BH, bool kFull, class T, class Res>
     const int q1 = std::min(int(rec[11]) - ox, kTS - 1) / BW;
     const int br0 = std::max(int(rec[12]) - oy, 0) / BH;
     const int br1 = std::min(int(rec[13]) - oy, kTS - 1) / BH;
-    const uint64_t rows_in = kRowFirst & (~uint64_t(0) >> (63 - ((br1 + 1) * kBPR - 1))) &
-                             ~((uint64_t(1) << (br0 * kBPR)) - 1);
-    const uint64_t cols_in = (uint64_t(2) << q1) - (uint64_t(1) << q0);
-    if (!(live & rows_in * cols_in)) continue;
+    if (!(live & box_blocks<BW, BH>(q0, q1, br0, br1))) continue;
     const int32_t idx1 = int32_t(e - start) + 1;
     // dx and 0.5 a dx dx of each block column, the same on every block row.
     V dxs[kBPR], hxs[kBPR];
