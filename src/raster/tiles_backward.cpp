@@ -125,52 +125,47 @@ template <int BW, int BH, class T, class Res, class Img>
       const T cr = br[k], cg = bgc[k], cb = bbl[k];
       V s_mx{}, s_my{}, s_a{}, s_b{}, s_c{}, s_o{}, s_r{}, s_g{}, s_bl{};
       VI any{};  // lanes where this Gaussian contributed to some pixel of the tile
-      const int q0 = bx0[k], q1 = bx1[k];
-      if (!(active & box_blocks<BW, BH>(q0, q1, by0[k], by1[k]))) continue;
-      // Same expressions as the forward pass, so the skip decisions agree bit for bit.
-      V dxs[kBPR], hxs[kBPR];
-      for (int q = q0; q <= q1; ++q) {
-        dxs[q] = (mx - T(q * BW) - T(0.5)) - col_off;
-        hxs[q] = T(0.5) * a * dxs[q] * dxs[q];
-      }
-      for (int rb = by0[k]; rb <= by1[k]; ++rb) {
-        const V dy = bmy[k] - ((T(rb * BH) + row_off) + T(0.5));
-        const V cdy = T(0.5) * c * dy * dy, bdy = b * dy;
-        for (int q = q0; q <= q1; ++q) {
-          const int blk = rb * kBPR + q;
-          if (block_max[blk] <= j) continue;
-          const int p0 = blk * N;
-          const V dx = dxs[q];
-          const V pw = -(hxs[q] + cdy) - bdy * dx;
-          const V Gv = SV::exp(pw);
-          const V og = o * Gv;
-          const V al = og < T(0.99) ? og : V{} + T(0.99);
-          const VI ok = (SI(j) < vload<VI>(last + p0)) & (pw <= T(0)) & (al >= T(1.0f / 255.0f));
-          any |= ok;
-          const V om = T(1) - al;
-          const V Tc = vload<V>(Tt + p0);
-          const V Tj = Tc / om;
-          V r0 = vload<V>(R0 + p0), r1 = vload<V>(R1 + p0), r2 = vload<V>(R2 + p0);
-          const V d0 = vload<V>(D0 + p0), d1 = vload<V>(D1 + p0), d2 = vload<V>(D2 + p0);
-          const V dLdal = Tj * ((cr - r0) * d0 + (cg - r1) * d1 + (cb - r2) * d2) +
-                          vload<V>(DA + p0) * vload<V>(Tf + p0) / om;
-          const V w = ok ? al * Tj : V{};
-          s_r += w * d0;
-          s_g += w * d1;
-          s_bl += w * d2;
-          vstore(R0 + p0, ok ? cr * al + om * r0 : r0);
-          vstore(R1 + p0, ok ? cg * al + om * r1 : r1);
-          vstore(R2 + p0, ok ? cb * al + om * r2 : r2);
-          vstore(Tt + p0, ok ? Tj : Tc);
-          const V dLdog = (ok & (og <= T(0.99))) ? dLdal : V{};
-          s_o += Gv * dLdog;
-          const V dLdpw = og * dLdog;
-          s_mx -= dLdpw * (a * dx + b * dy);
-          s_my -= dLdpw * (c * dy + b * dx);
-          s_a -= T(0.5) * dx * dx * dLdpw;
-          s_c -= T(0.5) * dy * dy * dLdpw;
-          s_b -= dx * dy * dLdpw;
-        }
+      // The box's blocks some pixel's last contributor reaches, visited by their bits.
+      uint64_t todo = active & box_blocks<BW, BH>(bx0[k], bx1[k], by0[k], by1[k]);
+      if (!todo) continue;
+      const T ha = T(0.5) * a, hc = T(0.5) * c, my = bmy[k];
+      for (; todo; todo &= todo - 1) {
+        const int blk = __builtin_ctzll(todo);
+        if (block_max[blk] <= j) continue;
+        const int rb = blk / kBPR, q = blk % kBPR;
+        const int p0 = blk * N;
+        // Same expressions as the forward pass, so the skip decisions agree bit for bit.
+        const V dx = (mx - T(q * BW) - T(0.5)) - col_off;
+        const V dy = my - ((T(rb * BH) + row_off) + T(0.5));
+        const V pw = -(ha * dx * dx + hc * dy * dy) - (b * dy) * dx;
+        const V Gv = SV::exp(pw);
+        const V og = o * Gv;
+        const V al = og < T(0.99) ? og : V{} + T(0.99);
+        const VI ok = (SI(j) < vload<VI>(last + p0)) & (pw <= T(0)) & (al >= T(1.0f / 255.0f));
+        any |= ok;
+        const V om = T(1) - al;
+        const V Tc = vload<V>(Tt + p0);
+        const V Tj = Tc / om;
+        V r0 = vload<V>(R0 + p0), r1 = vload<V>(R1 + p0), r2 = vload<V>(R2 + p0);
+        const V d0 = vload<V>(D0 + p0), d1 = vload<V>(D1 + p0), d2 = vload<V>(D2 + p0);
+        const V dLdal = Tj * ((cr - r0) * d0 + (cg - r1) * d1 + (cb - r2) * d2) +
+                        vload<V>(DA + p0) * vload<V>(Tf + p0) / om;
+        const V w = ok ? al * Tj : V{};
+        s_r += w * d0;
+        s_g += w * d1;
+        s_bl += w * d2;
+        vstore(R0 + p0, ok ? cr * al + om * r0 : r0);
+        vstore(R1 + p0, ok ? cg * al + om * r1 : r1);
+        vstore(R2 + p0, ok ? cb * al + om * r2 : r2);
+        vstore(Tt + p0, ok ? Tj : Tc);
+        const V dLdog = (ok & (og <= T(0.99))) ? dLdal : V{};
+        s_o += Gv * dLdog;
+        const V dLdpw = og * dLdog;
+        s_mx -= dLdpw * (a * dx + b * dy);
+        s_my -= dLdpw * (c * dy + b * dx);
+        s_a -= T(0.5) * dx * dx * dLdpw;
+        s_c -= T(0.5) * dy * dy * dLdpw;
+        s_b -= dx * dy * dLdpw;
       }
       // Nothing to add where no pixel took this Gaussian (its sums are exact zeros).
       if (SV::count(any) == 0) continue;

@@ -63,43 +63,39 @@ template <int BW, int BH, bool kFull, class T, class Res>
     const int q1 = std::min(int(rec[11]) - ox, kTS - 1) / BW;
     const int br0 = std::max(int(rec[12]) - oy, 0) / BH;
     const int br1 = std::min(int(rec[13]) - oy, kTS - 1) / BH;
-    if (!(live & box_blocks<BW, BH>(q0, q1, br0, br1))) continue;
+    // The live blocks of the Gaussian's box, visited by their bits (no nested loops of varying
+    // length to mispredict; a block finished meanwhile is not in the box again).
+    uint64_t todo = live & box_blocks<BW, BH>(q0, q1, br0, br1);
+    if (!todo) continue;
     const int32_t idx1 = int32_t(e - start) + 1;
-    // dx and 0.5 a dx dx of each block column, the same on every block row.
-    V dxs[kBPR], hxs[kBPR];
-    for (int q = q0; q <= q1; ++q) {
-      dxs[q] = (mx - T(q * BW) - T(0.5)) - col_off;
-      hxs[q] = T(0.5) * a * dxs[q] * dxs[q];
-    }
-    for (int br = br0; br <= br1; ++br) {
+    const T ha = T(0.5) * a, hc = T(0.5) * c;
+    for (; todo; todo &= todo - 1) {
+      const int blk = __builtin_ctzll(todo);
+      const int br = blk / kBPR, q = blk % kBPR;
+      const int p0 = blk * N;
+      // The same expressions (and so the same bits) as per block column and row.
+      const V dx = (mx - T(q * BW) - T(0.5)) - col_off;
       const V dy = my - ((T(br * BH) + row_off) + T(0.5));
-      const V cdy = T(0.5) * c * dy * dy, bdy = b * dy;
-      for (int q = q0; q <= q1; ++q) {
-        const int blk = br * kBPR + q;
-        if (block_live[blk] == 0) continue;
-        const int p0 = blk * N;
-        const V dx = dxs[q];
-        const V pw = -(hxs[q] + cdy) - bdy * dx;
-        const V og = o * SV::exp(pw);
-        const V al = og < T(0.99) ? og : V{} + T(0.99);
-        const V Tp = vload<V>(Tt + p0);
-        const VI ok = (pw <= T(0)) & (al >= T(1.0f / 255.0f)) & (Tp > T(0));
-        const V Tn = Tp * (T(1) - al);
-        const VI term = ok & (Tn < T(1e-4));
-        const VI con = ok & ~term;
-        const V w = con ? al * Tp : V{};
-        vstore(C0 + p0, vload<V>(C0 + p0) + w * cr);
-        vstore(C1 + p0, vload<V>(C1 + p0) + w * cg);
-        vstore(C2 + p0, vload<V>(C2 + p0) + w * cb);
-        if constexpr (kFull) vstore(Dp + p0, vload<V>(Dp + p0) + w * zz);
-        vstore(Tt + p0, con ? Tn : (term ? -Tp : Tp));
-        if constexpr (kFull) vstore(last + p0, (con & SI(idx1)) | (~con & vload<VI>(last + p0)));
-        const int nterm = SV::count(term);
-        if (nterm) {
-          block_live[blk] -= nterm;
-          tile_live -= nterm;
-          if (block_live[blk] == 0) live &= ~(uint64_t(1) << blk);
-        }
+      const V pw = -(ha * dx * dx + hc * dy * dy) - (b * dy) * dx;
+      const V og = o * SV::exp(pw);
+      const V al = og < T(0.99) ? og : V{} + T(0.99);
+      const V Tp = vload<V>(Tt + p0);
+      const VI ok = (pw <= T(0)) & (al >= T(1.0f / 255.0f)) & (Tp > T(0));
+      const V Tn = Tp * (T(1) - al);
+      const VI term = ok & (Tn < T(1e-4));
+      const VI con = ok & ~term;
+      const V w = con ? al * Tp : V{};
+      vstore(C0 + p0, vload<V>(C0 + p0) + w * cr);
+      vstore(C1 + p0, vload<V>(C1 + p0) + w * cg);
+      vstore(C2 + p0, vload<V>(C2 + p0) + w * cb);
+      if constexpr (kFull) vstore(Dp + p0, vload<V>(Dp + p0) + w * zz);
+      vstore(Tt + p0, con ? Tn : (term ? -Tp : Tp));
+      if constexpr (kFull) vstore(last + p0, (con & SI(idx1)) | (~con & vload<VI>(last + p0)));
+      const int nterm = SV::count(term);
+      if (nterm) {
+        block_live[blk] -= nterm;
+        tile_live -= nterm;
+        if (block_live[blk] == 0) live &= ~(uint64_t(1) << blk);
       }
     }
   }
