@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "animate/framing.hpp"
+#include "animate/posed_render.hpp"
 #include "avatar/pose.hpp"
 #include "core/error.hpp"
 #include "core/fileio.hpp"
@@ -68,7 +69,8 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
   BackfaceCull cull;
   cull.normals = &normals;
   cull.threshold = o.backface_cull;
-  Gaussians g;
+  Gaussians g;  // the posed Gaussians, for the .ply files
+  PosedRenderer renderer(avatar);
   RasterResult rr;
   Progress prog("animate", o.progress ? F : 0);
   double render_s = 0;
@@ -76,14 +78,17 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
   for (int f = 0; f < F; ++f) {
     const auto t0 = std::chrono::steady_clock::now();
     cull.eye = cams[f].centre();
-    pose_avatar(avatar, motion.frames[f], g, rep.culled ? &cull : nullptr, f > 0);
-    rasterize_forward(g, cams[f], rs, rr);
+    // Posed as the projection reads them (the same image as posing first).
+    renderer.render(motion.frames[f], cams[f], rs, rr, rep.culled ? &cull : nullptr);
     render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     char name[32];
     std::snprintf(name, sizeof name, "%04d", f);
     pngs.push_back(staged.path(std::string(name) + ".png"));
     write_png(pngs.back(), rr.color);
-    if (o.ply) write_ply(staged.path(std::string(name) + ".ply"), g);
+    if (o.ply) {
+      pose_avatar(avatar, motion.frames[f], g, nullptr, f > 0);
+      write_ply(staged.path(std::string(name) + ".ply"), g);
+    }
     if (o.progress) prog.update(f + 1);
   }
   if (o.progress) prog.finish();

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <utility>
 
 #include "body/posing.hpp"
 #include "core/error.hpp"
@@ -79,14 +80,20 @@ std::vector<float> avatar_anchor_normals(const Avatar& a) {
   return out;
 }
 
+AvatarPoseInputs avatar_pose_inputs(const Avatar& a, const BodyParams& p) {
+  PosedSkeleton<double> sk = avatar_skeleton(a, p);
+  AvatarPoseInputs in;
+  // Pose correctives: offsets = posedirs * (R_j - I) of the joints j >= 1.
+  if (a.posedirs.size() > 0) in.offsets = a.posedirs * pose_feature(sk.local).cast<float>();
+  in.transforms = std::move(sk.transforms);
+  return in;
+}
+
 void pose_avatar(const Avatar& a, const BodyParams& p, Gaussians& out, const BackfaceCull* cull,
                  bool keep_unposed) {
-  const PosedSkeleton<double> sk = avatar_skeleton(a, p);
-  // Pose correctives: offsets = posedirs * (R_j - I) of the joints j >= 1.
-  Eigen::VectorXf offsets;
-  if (a.posedirs.size() > 0) offsets = a.posedirs * pose_feature(sk.local).cast<float>();
-  lbs_forward(a.gaussians, offsets.size() > 0 ? offsets.data() : nullptr, a.skin_joints,
-              a.skin_weights, sk.transforms, out, nullptr, cull, keep_unposed);
+  const AvatarPoseInputs in = avatar_pose_inputs(a, p);
+  lbs_forward(a.gaussians, in.offsets.size() > 0 ? in.offsets.data() : nullptr, a.skin_joints,
+              a.skin_weights, in.transforms, out, nullptr, cull, keep_unposed);
 }
 
 Gaussians pose_avatar(const Avatar& a, const BodyParams& p) {

@@ -34,6 +34,14 @@ Eigen::MatrixXd avatar_posed_joints(const Avatar& avatar, const BodyParams& para
 // (then there is nothing to cull by).
 std::vector<float> avatar_anchor_normals(const Avatar& avatar);
 
+// What posing needs for one pose: the skinning transforms and, when the avatar stores pose
+// correctives, their offsets (3N; empty otherwise).
+struct AvatarPoseInputs {
+  std::vector<Eigen::Matrix4d> transforms;
+  Eigen::VectorXf offsets;
+};
+AvatarPoseInputs avatar_pose_inputs(const Avatar& avatar, const BodyParams& params);
+
 // Poses the canonical Gaussians with the avatar's skeleton, pose correctives and skin weights:
 // the training's LBS (body/lbs.hpp), with optional back-face culling. `out` is resized, its
 // buffers reused; keep_unposed: `out` was posed from this avatar before, its scales and SH are

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <memory>
 #include <string>
 
 #include "core/error.hpp"
@@ -13,9 +14,7 @@
 
 namespace ks {
 
-namespace {
-
-// What one lbs_forward call applies to every block.
+// What one lbs_forward call (or LbsRanges pose) applies to every block.
 struct LbsJob {
   const Gaussians* c;
   const float* pose_offsets;
@@ -23,11 +22,15 @@ struct LbsJob {
   const float* weights;
   int K;
   const float* tf;  // 12 per joint: the skinning transforms' top 3 x 4, row-major, float
-  Gaussians* posed;
+  // Gaussian i's posed mean, rotation and opacity logit go to index i - first of these.
+  float *means, *quats, *opacity;
+  size_t first;
   LbsCache* cache;
   const float* nrm;  // 3N anchor normals for culling, or nullptr
   float eye[3], thr;
 };
+
+namespace {
 
 // Gaussians [i0, i0 + n) (n <= CW; the other lanes repeat the first and are not stored).
 template <int CW>
@@ -87,10 +90,10 @@ template <int CW>
                                       (vx * vx + vy * vy + vz * vz));
   }
   for (int l = 0; l < n; ++l) {
-    const size_t i = i0 + size_t(l);
-    for (int k = 0; k < 3; ++k) job.posed->means[3 * i + k] = m[k][l];
-    for (int k = 0; k < 4; ++k) job.posed->quats[4 * i + k] = qp[k][l];
-    if (culled[l]) job.posed->opacity_logits[i] = kCulledOpacityLogit;
+    const size_t i = i0 + size_t(l), o = i - job.first;
+    for (int k = 0; k < 3; ++k) job.means[3 * o + k] = m[k][l];
+    for (int k = 0; k < 4; ++k) job.quats[4 * o + k] = qp[k][l];
+    job.opacity[o] = culled[l] ? kCulledOpacityLogit : job.c->opacity_logits[i];
     if (job.cache) {
       for (int e = 0; e < 12; ++e) job.cache->M[12 * i + size_t(e)] = M[e][l];
       for (int k = 0; k < 4; ++k) job.cache->qblend[4 * i + k] = qb[k][l];
@@ -130,17 +133,61 @@ bool lbs_allow_avx2(bool allow) {
   return g_allow_avx2.exchange(allow);
 }
 
+namespace {
+
+void check_skin(const Gaussians& c, const std::vector<int>& skin_joints,
+                const std::vector<float>& skin_weights, int& K) {
+  const size_t n = c.size();
+  K = n > 0 ? int(skin_joints.size() / n) : 4;
+  if (n > 0 &&
+      (K < 1 || skin_joints.size() != size_t(K) * n || skin_weights.size() != skin_joints.size()))
+    throw Error("lbs_forward: skin joints/weights must be K per Gaussian");
+}
+
+void throw_joint_out_of_range(const std::vector<int>& skin_joints, uint32_t J) {
+  for (const int j : skin_joints)
+    if (j < 0 || uint32_t(j) >= J)
+      throw Error("lbs_forward: skin joint " + std::to_string(j) + " out of range (" +
+                  std::to_string(J) + " transforms)");
+}
+
+void set_transforms(const std::vector<Eigen::Matrix4d>& transforms, std::vector<float>& tf) {
+  tf.resize(12 * transforms.size());
+  for (size_t j = 0; j < transforms.size(); ++j)
+    for (int r = 0; r < 3; ++r)
+      for (int cc = 0; cc < 4; ++cc) tf[12 * j + size_t(4 * r + cc)] = float(transforms[j](r, cc));
+}
+
+void set_cull(const BackfaceCull* cull, size_t n, LbsJob& job) {
+  if (cull && !(cull->threshold >= 0.f && cull->threshold <= 1.f))
+    throw Error("lbs_forward: the back-face cull threshold must be in [0, 1]");
+  job.nrm = nullptr;
+  job.thr = 1.f;
+  if (cull && cull->normals && cull->normals->size() == 3 * n && cull->threshold < 1.f) {
+    job.nrm = cull->normals->data();
+    for (int k = 0; k < 3; ++k) job.eye[k] = float(cull->eye[k]);
+    job.thr = cull->threshold;
+  }
+}
+
+void run_range(const LbsJob& job, size_t b, size_t e) {
+  if (lbs_avx2())
+    lbs_range_avx2(job, b, e);
+  else
+    lbs_range_sse2(job, b, e);
+}
+
+}  // namespace
+
 void lbs_forward(const Gaussians& c, const float* pose_offsets, const std::vector<int>& skin_joints,
                  const std::vector<float>& skin_weights,
                  const std::vector<Eigen::Matrix4d>& transforms, Gaussians& posed, LbsCache* cache,
                  const BackfaceCull* cull, bool keep_unposed) {
   const long n = long(c.size());
-  const int K = n > 0 ? int(skin_joints.size() / size_t(n)) : 4;
-  if (n > 0 && (K < 1 || skin_joints.size() != size_t(K) * size_t(n) ||
-                skin_weights.size() != skin_joints.size()))
-    throw Error("lbs_forward: skin joints/weights must be K per Gaussian");
-  if (cull && !(cull->threshold >= 0.f && cull->threshold <= 1.f))
-    throw Error("lbs_forward: the back-face cull threshold must be in [0, 1]");
+  int K = 4;
+  check_skin(c, skin_joints, skin_weights, K);
+  LbsJob job{};
+  set_cull(cull, size_t(n), job);
   posed.sh_degree = c.sh_degree;
   posed.means.resize(3 * size_t(n));
   posed.quats.resize(4 * size_t(n));
@@ -149,35 +196,26 @@ void lbs_forward(const Gaussians& c, const float* pose_offsets, const std::vecto
     posed.log_scales = c.log_scales;
     posed.sh = c.sh;
   }
-  posed.opacity_logits = c.opacity_logits;  // culling rewrites them every call
+  posed.opacity_logits.resize(size_t(n));  // written every call (culling)
   if (cache) {
     cache->M.resize(12 * size_t(n));
     cache->qblend.resize(4 * size_t(n));
   }
-  std::vector<float> tf(12 * transforms.size());
-  for (size_t j = 0; j < transforms.size(); ++j)
-    for (int r = 0; r < 3; ++r)
-      for (int cc = 0; cc < 4; ++cc) tf[12 * j + size_t(4 * r + cc)] = float(transforms[j](r, cc));
-  LbsJob job{&c,
-             pose_offsets,
-             skin_joints.data(),
-             skin_weights.data(),
-             K,
-             tf.data(),
-             &posed,
-             cache,
-             nullptr,
-             {0.f, 0.f, 0.f},
-             1.f};
-  if (cull && cull->normals && cull->normals->size() == 3 * size_t(n) && cull->threshold < 1.f) {
-    job.nrm = cull->normals->data();
-    for (int k = 0; k < 3; ++k) job.eye[k] = float(cull->eye[k]);
-    job.thr = cull->threshold;
-  }
+  std::vector<float> tf;
+  set_transforms(transforms, tf);
+  job.c = &c;
+  job.pose_offsets = pose_offsets;
+  job.joints = skin_joints.data();
+  job.weights = skin_weights.data();
+  job.K = K;
+  job.tf = tf.data();
+  job.means = posed.means.data(), job.quats = posed.quats.data();
+  job.opacity = posed.opacity_logits.data();
+  job.first = 0;
+  job.cache = cache;
   // Blocks of 4 (SSE2) or 8 (AVX2) Gaussians, the same operations at both widths.
   constexpr size_t kChunk = 512;
   const long chunks = long((size_t(n) + kChunk - 1) / kChunk);
-  const bool wide = lbs_avx2();
   const uint32_t J = uint32_t(transforms.size());
   bool bad = false;
 #pragma omp parallel for schedule(static) if (n > 1024) reduction(|| : bad)
@@ -192,16 +230,47 @@ void lbs_forward(const Gaussians& c, const float* pose_offsets, const std::vecto
       bad = true;
       continue;
     }
-    if (wide)
-      lbs_range_avx2(job, b, e);
-    else
-      lbs_range_sse2(job, b, e);
+    run_range(job, b, e);
   }
-  if (bad)
-    for (const int j : skin_joints)
-      if (j < 0 || uint32_t(j) >= J)
-        throw Error("lbs_forward: skin joint " + std::to_string(j) + " out of range (" +
-                    std::to_string(J) + " transforms)");
+  if (bad) throw_joint_out_of_range(skin_joints, J);
+}
+
+LbsRanges::LbsRanges(const Gaussians& canonical, const std::vector<int>& skin_joints,
+                     const std::vector<float>& skin_weights, int num_transforms)
+    : job_(std::make_unique<LbsJob>()), J_(num_transforms) {
+  int K = 4;
+  check_skin(canonical, skin_joints, skin_weights, K);
+  uint32_t largest = 0;
+  for (const int j : skin_joints) largest = std::max(largest, uint32_t(j));
+  if (!skin_joints.empty() && (num_transforms < 0 || largest >= uint32_t(num_transforms)))
+    throw_joint_out_of_range(skin_joints, uint32_t(std::max(num_transforms, 0)));
+  job_->c = &canonical;
+  job_->joints = skin_joints.data();
+  job_->weights = skin_weights.data();
+  job_->K = K;
+  job_->thr = 1.f;
+}
+
+LbsRanges::~LbsRanges() = default;
+
+void LbsRanges::set_pose(const std::vector<Eigen::Matrix4d>& transforms, const float* pose_offsets,
+                         const BackfaceCull* cull) {
+  if (int(transforms.size()) != J_)
+    throw Error("LbsRanges: " + std::to_string(transforms.size()) + " transforms for " +
+                std::to_string(J_) + " joints");
+  set_transforms(transforms, tf_);
+  job_->tf = tf_.data();
+  job_->pose_offsets = pose_offsets;
+  set_cull(cull, job_->c->size(), *job_);
+}
+
+void LbsRanges::pose(size_t b, size_t e, float* means, float* quats, float* opacity_logits) const {
+  if (tf_.empty()) throw Error("LbsRanges: pose before set_pose");
+  LbsJob job = *job_;
+  job.means = means, job.quats = quats, job.opacity = opacity_logits;
+  job.first = b;
+  job.cache = nullptr;
+  run_range(job, b, e);
 }
 
 void lbs_backward(const LbsCache& cache, const std::vector<float>& dmp,

@@ -11,6 +11,7 @@
 // canonical means and rotations is linear: dx = M^T dx', dq = conj(q(M)) * dq'.
 #include <Eigen/Core>
 #include <Eigen/StdVector>
+#include <memory>
 #include <vector>
 
 #include "gaussians/gaussians.hpp"
@@ -60,6 +61,34 @@ void lbs_forward(const Gaussians& canonical, const float* pose_offsets,
                  const std::vector<Eigen::Matrix4d>& transforms, Gaussians& posed,
                  LbsCache* cache = nullptr, const BackfaceCull* cull = nullptr,
                  bool keep_unposed = false);
+// lbs_forward's posing of the means, rotations and opacity logits (culled ones at
+// kCulledOpacityLogit) for one range of Gaussians at a time, into the caller's arrays: playback
+// poses each chunk as the rasterizer's projection reads it (raster/rasterizer.hpp
+// GaussianSource), so the posed Gaussians never make a round trip through memory. The skin is
+// checked once, at construction (ks::Error: sizes, a joint outside [0, num_transforms)); the
+// references must outlive this.
+struct LbsJob;
+class LbsRanges {
+ public:
+  LbsRanges(const Gaussians& canonical, const std::vector<int>& skin_joints,
+            const std::vector<float>& skin_weights, int num_transforms);
+  ~LbsRanges();
+  LbsRanges(const LbsRanges&) = delete;
+  LbsRanges& operator=(const LbsRanges&) = delete;
+  // This frame's skinning transforms (num_transforms of them), pose-corrective offsets (3N, or
+  // nullptr) and back-face culling (or nullptr); the pointers must outlive the calls to pose.
+  void set_pose(const std::vector<Eigen::Matrix4d>& transforms, const float* pose_offsets,
+                const BackfaceCull* cull);
+  // Gaussians [b, e) into means[3 (i - b) ..], quats[4 (i - b) ..], opacity_logits[i - b]: what
+  // lbs_forward writes for them, bit for bit. Thread-safe for disjoint ranges.
+  void pose(size_t b, size_t e, float* means, float* quats, float* opacity_logits) const;
+
+ private:
+  std::unique_ptr<LbsJob> job_;
+  int J_;
+  std::vector<float> tf_;
+};
+
 // lbs_forward works on blocks of 8 Gaussians (AVX2, where the CPU has it) or 4 (SSE2), the same
 // operations at both widths. Tests pin the baseline (false) to compare the two; returns the
 // previous setting.

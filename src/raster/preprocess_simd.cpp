@@ -46,11 +46,20 @@ template <class L, class V = typename L::V, class I = typename L::I>
   ddz = L::sel(has, dz / dist, L::splat(1.f));
 }
 
+// Where the projection reads the means, rotations and opacity logits: Gaussian i's at index
+// i - first of these (the Gaussians' own, first = 0, or a GaussianSource's chunk); the rest comes
+// from the Gaussians by id. padded: a mean's three floats may be read as four everywhere.
+struct PoseInputs {
+  const float *means, *quats, *opacity;
+  size_t first;
+  bool padded;
+};
+
 // One block of CW Gaussians starting at i0 (n <= CW of them real; the rest are padding).
 template <int CW>
-[[gnu::always_inline]] inline void project_block(const Gaussians& g, const CameraT<float>& cam,
-                                                 const RasterSettings& s, size_t i0, int n,
-                                                 RasterResultT<float>& out) {
+[[gnu::always_inline]] inline void project_block(const Gaussians& g, const PoseInputs& in,
+                                                 const CameraT<float>& cam, const RasterSettings& s,
+                                                 size_t i0, int n, RasterResultT<float>& out) {
   using L = Lanes<CW>;
   using V = typename L::V;
   using I = typename L::I;
@@ -65,16 +74,17 @@ template <int CW>
     const bool overread = i0 + size_t(n) < g.size();
     V4 rm[CW], rq[CW], rs[CW];
     for (int l = 0; l < CW; ++l) {
-      const size_t i = i0 + size_t(l < n ? l : 0);
-      rq[l] = L::load4(&g.quats[4 * i]);
-      if (overread) {
-        rm[l] = L::load4(&g.means[3 * i]);
+      const size_t i = i0 + size_t(l < n ? l : 0), k = i - in.first;
+      rq[l] = L::load4(&in.quats[4 * k]);
+      if (overread || in.padded)
+        rm[l] = L::load4(&in.means[3 * k]);
+      else
+        rm[l] = V4{in.means[3 * k], in.means[3 * k + 1], in.means[3 * k + 2], 0.f};
+      if (overread)
         rs[l] = L::load4(&g.log_scales[3 * i]);
-      } else {
-        rm[l] = V4{g.means[3 * i], g.means[3 * i + 1], g.means[3 * i + 2], 0.f};
+      else
         rs[l] = V4{g.log_scales[3 * i], g.log_scales[3 * i + 1], g.log_scales[3 * i + 2], 0.f};
-      }
-      lo[l] = g.opacity_logits[i];
+      lo[l] = in.opacity[k];
     }
     V t[4];
     L::transpose4(rm, t);
@@ -367,25 +377,23 @@ template <int CW>
 
 // Gaussians [b, e) in blocks of CW.
 template <int CW>
-[[gnu::always_inline]] inline void project_range(const Gaussians& g, const CameraT<float>& cam,
-                                                 const RasterSettings& s, size_t b, size_t e,
-                                                 RasterResultT<float>& out) {
+[[gnu::always_inline]] inline void project_range(const Gaussians& g, const PoseInputs& in,
+                                                 const CameraT<float>& cam, const RasterSettings& s,
+                                                 size_t b, size_t e, RasterResultT<float>& out) {
   for (size_t i0 = b; i0 < e; i0 += CW)
-    project_block<CW>(g, cam, s, i0, int(std::min<size_t>(CW, e - i0)), out);
+    project_block<CW>(g, in, cam, s, i0, int(std::min<size_t>(CW, e - i0)), out);
 }
 
-void project_range_sse2(const Gaussians& g, const CameraT<float>& cam, const RasterSettings& s,
-                        size_t b, size_t e, RasterResultT<float>& out) {
-  project_range<4>(g, cam, s, b, e, out);
+void project_range_sse2(const Gaussians& g, const PoseInputs& in, const CameraT<float>& cam,
+                        const RasterSettings& s, size_t b, size_t e, RasterResultT<float>& out) {
+  project_range<4>(g, in, cam, s, b, e, out);
 }
 
 // (The OpenMP loop stays outside: its outlined body would not inherit the target.)
-__attribute__((target("avx2"), flatten)) void project_range_avx2(const Gaussians& g,
-                                                                 const CameraT<float>& cam,
-                                                                 const RasterSettings& s, size_t b,
-                                                                 size_t e,
-                                                                 RasterResultT<float>& out) {
-  project_range<8>(g, cam, s, b, e, out);
+__attribute__((target("avx2"), flatten)) void project_range_avx2(
+    const Gaussians& g, const PoseInputs& in, const CameraT<float>& cam, const RasterSettings& s,
+    size_t b, size_t e, RasterResultT<float>& out) {
+  project_range<8>(g, in, cam, s, b, e, out);
 }
 
 template <int CW>
@@ -413,17 +421,29 @@ __attribute__((target("avx2"), flatten)) void backward_range_avx2(const Gaussian
 }  // namespace
 
 void preprocess_forward_simd(const Gaussians& g, const CameraT<float>& cam, const RasterSettings& s,
-                             Isa isa, RasterResultT<float>& out) {
+                             Isa isa, RasterResultT<float>& out, const GaussianSource* source) {
   constexpr size_t kChunk = 512;  // Gaussians a task (a multiple of both block widths)
   const size_t N = g.size();
   const long chunks = long((N + kChunk - 1) / kChunk);
-#pragma omp parallel for schedule(static)
-  for (long c = 0; c < chunks; ++c) {
-    const size_t b = size_t(c) * kChunk, e = std::min(N, b + kChunk);
-    if (isa == Isa::kBaseline)
-      project_range_sse2(g, cam, s, b, e, out);
-    else
-      project_range_avx2(g, cam, s, b, e, out);
+#pragma omp parallel
+  {
+    // A source's chunk: posed into this thread's scratch (a float of padding after the means),
+    // projected while it is in the cache.
+    std::vector<float> scratch(source ? 8 * kChunk + 1 : 0);
+#pragma omp for schedule(static)
+    for (long c = 0; c < chunks; ++c) {
+      const size_t b = size_t(c) * kChunk, e = std::min(N, b + kChunk);
+      PoseInputs in{g.means.data(), g.quats.data(), g.opacity_logits.data(), 0, false};
+      if (source) {
+        float *m = scratch.data(), *q = m + 3 * kChunk + 1, *o = q + 4 * kChunk;
+        source->fill(b, e, m, q, o);
+        in = PoseInputs{m, q, o, b, true};
+      }
+      if (isa == Isa::kBaseline)
+        project_range_sse2(g, in, cam, s, b, e, out);
+      else
+        project_range_avx2(g, in, cam, s, b, e, out);
+    }
   }
 }
 

@@ -273,7 +273,8 @@ void preprocess_backward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ra
                          int threads, RasterGradsT<T>& gr);
 // preprocess_simd.cpp: the same projection for float, blocks of 4 (SSE2) or 8 (AVX2) Gaussians.
 void preprocess_forward_simd(const GaussiansT<float>& g, const CameraT<float>& cam,
-                             const RasterSettings& s, Isa isa, RasterResultT<float>& out);
+                             const RasterSettings& s, Isa isa, RasterResultT<float>& out,
+                             const GaussianSource* source = nullptr);
 // preprocess_simd.cpp: the chain rule of preprocess_backward for float in the same blocks.
 void preprocess_backward_simd(const GaussiansT<float>& g, const CameraT<float>& cam,
                               const RasterResultT<float>& fwd, int threads, Isa isa,

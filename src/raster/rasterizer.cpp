@@ -64,10 +64,12 @@ void shape_image(Img& img, int w, int h, int c) {
 }  // namespace
 }  // namespace raster
 
+namespace raster {
+namespace {
+
 template <class T>
-void rasterize_forward(const GaussiansT<T>& g, const Camera& camera, const RasterSettings& s,
-                       RasterResultT<T>& out) {
-  using namespace raster;
+void forward(const GaussiansT<T>& g, const GaussianSource* source, const Camera& camera,
+             const RasterSettings& s, RasterResultT<T>& out) {
   check_gaussians(g);
   if (camera.width <= 0 || camera.height <= 0) throw Error("rasterizer: empty camera image");
   const CameraT<T> cam(camera);
@@ -99,7 +101,7 @@ void rasterize_forward(const GaussiansT<T>& g, const Camera& camera, const Raste
   PhaseTimer timer;
   // 1. Cull + project + colour, one parallel pass.
   if constexpr (std::is_same_v<T, float>)
-    preprocess_forward_simd(g, cam, s, isa, out);
+    preprocess_forward_simd(g, cam, s, isa, out, source);
   else
     preprocess_forward(g, cam, s, out);
   timer.mark("project");
@@ -110,6 +112,20 @@ void rasterize_forward(const GaussiansT<T>& g, const Camera& camera, const Raste
   const T bg[3] = {T(s.background[0]), T(s.background[1]), T(s.background[2])};
   composite_tiles(out, tiles_x, tiles_y, bg, isa);
   timer2.mark("composite");
+}
+
+}  // namespace
+}  // namespace raster
+
+template <class T>
+void rasterize_forward(const GaussiansT<T>& g, const Camera& camera, const RasterSettings& s,
+                       RasterResultT<T>& out) {
+  raster::forward<T>(g, nullptr, camera, s, out);
+}
+
+void rasterize_forward(const Gaussians& g, const GaussianSource& source, const Camera& camera,
+                       const RasterSettings& s, RasterResult& out) {
+  raster::forward<float>(g, &source, camera, s, out);
 }
 
 template <class T>

@@ -97,6 +97,22 @@ using RasterGradsD = RasterGradsT<double>;
 template <class T>
 void rasterize_forward(const GaussiansT<T>& g, const Camera& cam, const RasterSettings& settings,
                        RasterResultT<T>& out);
+// Means, rotations and opacity logits computed as the projection reads them, a chunk of Gaussians
+// at a time, into scratch of the projection's (playback's posing: body/lbs.hpp LbsRanges), so
+// that they never make a round trip through memory.
+class GaussianSource {
+ public:
+  virtual ~GaussianSource() = default;
+  // Gaussians [b, e) into means[3 (i - b) ..], quats[4 (i - b) ..], opacity_logits[i - b].
+  // Called from the projection's threads for disjoint ranges.
+  virtual void fill(size_t b, size_t e, float* means, float* quats,
+                    float* opacity_logits) const = 0;
+};
+// The forward with the means, rotations and opacities of `source`; `g` gives the rest (scales,
+// SH) and the count (its own means, quats and opacities are not read). The same result as
+// rasterize_forward on the Gaussians `source` describes, bit for bit.
+void rasterize_forward(const Gaussians& g, const GaussianSource& source, const Camera& cam,
+                       const RasterSettings& settings, RasterResult& out);
 // Gradients of a loss given dL/dcolor (W x H x 3) and dL/dalpha (W x H x 1, may be empty).
 // The gradients are written (not accumulated) into `grads`; its buffers are resized as needed.
 template <class T>
