@@ -111,6 +111,26 @@ __attribute__((target("avx2"), flatten)) void composite_tile_avx2(Res& out, int 
   composite_tile<4, 2, kFull, float>(out, tile, tiles_x, W, H, bg);
 }
 
+// A tile no Gaussian touches: colour = background, alpha 0 (and depth 0, final transmittance 1,
+// no contributor), as store_tile leaves it after compositing nothing.
+template <class T>
+void fill_empty_tile(RasterResultT<T>& out, int tile, int tiles_x, int W, int H, const T* bg,
+                     bool full) {
+  const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
+  const int w = std::min(kTS, W - ox);
+  for (int r = 0; r < kTS && oy + r < H; ++r) {
+    const size_t pix = size_t(oy + r) * W + ox;
+    T* c = &out.color.data[3 * pix];
+    for (int k = 0; k < w; ++k) c[3 * k] = bg[0], c[3 * k + 1] = bg[1], c[3 * k + 2] = bg[2];
+    std::fill_n(&out.alpha.data[pix], w, T(0));
+    if (full) {
+      std::fill_n(&out.depth.data[pix], w, T(0));
+      std::fill_n(&out.final_T[pix], w, T(1));
+      std::fill_n(&out.n_contrib[pix], w, 0u);
+    }
+  }
+}
+
 }  // namespace
 
 template <class T>
@@ -120,6 +140,11 @@ void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* b
   const bool full = !out.image_only;
 #pragma omp parallel for schedule(dynamic, 2)
   for (int tile = 0; tile < ntiles; ++tile) {
+    if (out.tile_ranges[2 * tile] == out.tile_ranges[2 * tile + 1]) {
+      // No Gaussian: the background, what the kernels would store for it.
+      fill_empty_tile(out, tile, tiles_x, W, H, bg, full);
+      continue;
+    }
     if constexpr (std::is_same_v<T, float>) {
 #if defined(__x86_64__)
       if (isa == Isa::kAvx512) {
