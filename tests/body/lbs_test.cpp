@@ -32,6 +32,19 @@ std::vector<Eigen::Matrix4d> random_transforms(int J, std::mt19937_64& rng) {
   return T;
 }
 
+// n canonical Gaussians with random means, log-scales, opacities and SH, unit rotations.
+Gaussians random_canonical(int n, int sh_degree, std::mt19937_64& rng) {
+  Gaussians c;
+  c.sh_degree = sh_degree;
+  c.resize(size_t(n));
+  for (float& v : c.means) v = float(test::randv(1, rng)[0]);
+  for (float& v : c.log_scales) v = float(test::randv(1, rng)[0]) - 3.f;
+  for (float& v : c.opacity_logits) v = float(test::randv(1, rng)[0]);
+  for (float& v : c.sh) v = float(test::randv(1, rng)[0]);
+  for (int i = 0; i < n; ++i) c.quats[4 * size_t(i)] = 1.f;
+  return c;
+}
+
 TEST(Lbs, BackwardMatchesFiniteDifferences) {
   std::mt19937_64 rng(3);
   const int n = 12, J = 5;
@@ -134,14 +147,7 @@ TEST(Lbs, PlaybackPosesAsTraining) {
 TEST(Lbs, KeepUnposedWritesWhatThePoseChanges) {
   std::mt19937_64 rng(9);
   const int n = 50, J = 3, K = 2;
-  Gaussians c;
-  c.sh_degree = 1;
-  c.resize(n);
-  for (float& v : c.means) v = float(test::randv(1, rng)[0]);
-  for (float& v : c.log_scales) v = float(test::randv(1, rng)[0]) - 3.f;
-  for (float& v : c.opacity_logits) v = float(test::randv(1, rng)[0]);
-  for (float& v : c.sh) v = float(test::randv(1, rng)[0]);
-  for (int i = 0; i < n; ++i) c.quats[4 * size_t(i)] = 1.f;
+  const Gaussians c = random_canonical(n, 1, rng);
   std::vector<int> sj(size_t(n) * K);
   std::vector<float> sw(size_t(n) * K, 0.5f);
   for (size_t q = 0; q < sj.size(); ++q) sj[q] = int(q % J);
@@ -184,12 +190,8 @@ TEST(Lbs, SkinJointOutOfRangeIsAnError) {
 TEST(Lbs, BothBlockWidthsPoseAlike) {
   std::mt19937_64 rng(4);
   const int n = 37, J = 5, K = 4;
-  Gaussians c;
-  c.sh_degree = 0;
-  c.resize(n);
-  for (float& v : c.means) v = float(test::randv(1, rng)[0]);
-  for (float& v : c.quats) v = float(test::randv(1, rng)[0]);
-  for (float& v : c.opacity_logits) v = float(test::randv(1, rng)[0]);
+  Gaussians c = random_canonical(n, 0, rng);
+  for (float& v : c.quats) v = float(test::randv(1, rng)[0]);  // unnormalised rotations
   std::vector<int> sj(size_t(n) * K);
   std::vector<float> sw(sj.size());
   for (size_t q = 0; q < sj.size(); ++q) {
