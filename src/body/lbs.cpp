@@ -265,7 +265,6 @@ void LbsRanges::set_pose(const std::vector<Eigen::Matrix4d>& transforms, const f
 }
 
 void LbsRanges::pose(size_t b, size_t e, float* means, float* quats, float* opacity_logits) const {
-  if (tf_.empty()) throw Error("LbsRanges: pose before set_pose");
   LbsJob job = *job_;
   job.means = means, job.quats = quats, job.opacity = opacity_logits;
   job.first = b;

@@ -80,7 +80,8 @@ class LbsRanges {
   void set_pose(const std::vector<Eigen::Matrix4d>& transforms, const float* pose_offsets,
                 const BackfaceCull* cull);
   // Gaussians [b, e) into means[3 (i - b) ..], quats[4 (i - b) ..], opacity_logits[i - b]: what
-  // lbs_forward writes for them, bit for bit. Thread-safe for disjoint ranges.
+  // lbs_forward writes for them, bit for bit. Thread-safe for disjoint ranges; after set_pose;
+  // does not throw (it runs inside the projection's parallel loop).
   void pose(size_t b, size_t e, float* means, float* quats, float* opacity_logits) const;
 
  private:

@@ -122,8 +122,8 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
   // by id (a gather from the eight arrays here took three times as long). An image-only forward
   // (no backward to read ranks) skips the copy: the tile lists hold Gaussian ids, and the records
   // by id become `packed` (the two buffers swap below).
-  // Binning in the same pass over each thread's contiguous slice of the depth order: the
-  // thread's per-tile counts from the tile rectangles the projection wrote, then a prefix sum
+  // Binning, each thread over its contiguous slice of the depth order: its per-tile counts from
+  // the tile rectangles the projection wrote (gathered once into depth order), then a prefix sum
   // over (tile, thread) gives every thread its write offsets, and each scatters its slice. Slices
   // are in depth order, so every tile list comes out depth-sorted (stable).
   const bool by_id = out.image_only;

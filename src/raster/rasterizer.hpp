@@ -69,7 +69,7 @@ struct RasterResultT {
   // an image_only forward, packed holds the records by id (nothing is copied) and point_list
   // holds ids; records is scratch.
   std::vector<T> packed, records;
-  std::vector<uint32_t> point_list;   // depth ranks (see packed), tile-major then depth
+  std::vector<uint32_t> point_list;   // depth ranks (ids if image_only), tile-major then depth
   std::vector<uint32_t> tile_ranges;  // 2 * tiles: [start, end) into point_list
   std::vector<T> final_T;             // per pixel
   std::vector<uint32_t> n_contrib;    // per pixel: index one past the last contributor (in tile)
@@ -104,7 +104,7 @@ class GaussianSource {
  public:
   virtual ~GaussianSource() = default;
   // Gaussians [b, e) into means[3 (i - b) ..], quats[4 (i - b) ..], opacity_logits[i - b].
-  // Called from the projection's threads for disjoint ranges.
+  // Called from the projection's threads for disjoint ranges; must not throw.
   virtual void fill(size_t b, size_t e, float* means, float* quats,
                     float* opacity_logits) const = 0;
 };
