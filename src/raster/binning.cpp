@@ -154,8 +154,7 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
       if (k + 16 < e) __builtin_prefetch(&rects[2 * size_t(ids[k + 16])]);
       const uint32_t xr = rects[2 * id], yr = rects[2 * id + 1];
       sorted_rects[2 * k] = xr, sorted_rects[2 * k + 1] = yr;
-      const int tx0 = int(xr & 0xffff), tx1 = int(xr >> 16), ty0 = int(yr & 0xffff),
-                ty1 = int(yr >> 16);
+      const auto [tx0, tx1, ty0, ty1] = unpack_tile_rect(xr, yr);
       const int nx = tx1 - tx0, ny = ty1 - ty0, t = ty0 * tiles_x + tx0;
       if ((nx | ny) <= 1) {  // at most 2 x 2 tiles (most Gaussians): no loop to mispredict
         const int dy = ny * tiles_x;
@@ -189,9 +188,8 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
     const uint32_t spare = uint32_t(out.point_list.size()) - uint32_t(nt - tid);
     for (size_t k = b; k < e; ++k) {
       const uint32_t id = by_id ? ids[k] : uint32_t(k);
-      const uint32_t xr = sorted_rects[2 * k], yr = sorted_rects[2 * k + 1];
-      const int tx0 = int(xr & 0xffff), tx1 = int(xr >> 16), ty0 = int(yr & 0xffff),
-                ty1 = int(yr >> 16);
+      const auto [tx0, tx1, ty0, ty1] =
+          unpack_tile_rect(sorted_rects[2 * k], sorted_rects[2 * k + 1]);
       const int nx = tx1 - tx0, ny = ty1 - ty0, t = ty0 * tiles_x + tx0;
       if ((nx | ny) <= 1) {
         // The three optional tiles write to this thread's spare slot when absent.

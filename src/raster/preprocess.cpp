@@ -52,8 +52,8 @@ void preprocess_forward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ras
     rec[11] = std::min(fx1, T(W - 1));
     rec[12] = std::max(fy0, T(0));
     rec[13] = std::min(fy1, T(H - 1));
-    out.tile_rects[2 * i] = uint32_t(int(rec[10]) / kTS) | uint32_t(int(rec[11]) / kTS) << 16;
-    out.tile_rects[2 * i + 1] = uint32_t(int(rec[12]) / kTS) | uint32_t(int(rec[13]) / kTS) << 16;
+    out.tile_rects[2 * i] = pack_tile_span(int(rec[10]), int(rec[11]));
+    out.tile_rects[2 * i + 1] = pack_tile_span(int(rec[12]), int(rec[13]));
     const T mid = T(0.5) * (A + C);
     const T lam1 = mid + std::sqrt(std::max(T(0.1), mid * mid - det));
     out.radii[i] = std::max(1, int(std::ceil(3 * std::sqrt(lam1))));

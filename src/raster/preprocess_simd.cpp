@@ -172,7 +172,7 @@ template <int CW>
                          {cn2, o, L::max(rgb[0], zero), L::max(rgb[1], zero)},
                          {L::max(rgb[2], zero), pz, x0, x1},
                          {y0, y1, zero, zero}};
-  // The tiles the pixel rectangle touches, two words a Gaussian (binning.cpp).
+  // The tiles the pixel rectangle touches, two words a Gaussian (pack_tile_span, lane-wise).
   auto tiles = [](V a) { return __builtin_convertvector(a, I) / kTS; };
   const I trx = tiles(x0) | tiles(x1) << 16, try_ = tiles(y0) | tiles(y1) << 16;
   for (int c = 0; c < 4; ++c) {

@@ -179,6 +179,30 @@ constexpr int block_index(int c, int r) {
 constexpr int row_index(int c, int r) {
   return block_index<kTS, 1>(c, r);
 }
+// A Gaussian at (mx, my) (tile-local pixels) over block (br, q) of the BW x BH layout: each
+// lane's offset from its pixel centre (dx, dy) and the exponent -1/2 d^T Q d, with ha = a / 2,
+// hc = c / 2 of the conic (a, b, c). The one expression both tile kernels use, so that their
+// decisions (alpha >= 1/255, the clamp) agree bit for bit.
+template <int BW, int BH, class V, class T>
+[[gnu::always_inline]] inline V block_power(T mx, T my, T ha, T b, T hc, int br, int q,
+                                            const V& col_off, const V& row_off, V& dx, V& dy) {
+  dx = (mx - T(q * BW) - T(0.5)) - col_off;
+  dy = my - ((T(br * BH) + row_off) + T(0.5));
+  return -(ha * dx * dx + hc * dy * dy) - (b * dy) * dx;
+}
+
+// A visible Gaussian's tiles (RasterResultT::tile_rects) as two words, tx0 | tx1 << 16 and
+// ty0 | ty1 << 16, from its inclusive pixel rectangle; and back.
+inline uint32_t pack_tile_span(int p0, int p1) {
+  return uint32_t(p0 / kTS) | uint32_t(p1 / kTS) << 16;
+}
+struct TileRect {
+  int tx0, tx1, ty0, ty1;
+};
+inline TileRect unpack_tile_rect(uint32_t xr, uint32_t yr) {
+  return {int(xr & 0xffff), int(xr >> 16), int(yr & 0xffff), int(yr >> 16)};
+}
+
 // The blocks of block rows br0..br1 and block columns q0..q1 as bits (block br * kTS / BW + q),
 // for tiles of at most 64 blocks: the tile kernels skip a Gaussian whose box holds none of the
 // blocks still to be done.

@@ -134,10 +134,8 @@ template <int BW, int BH, class T, class Res, class Img>
         if (block_max[blk] <= j) continue;
         const int rb = blk / kBPR, q = blk % kBPR;
         const int p0 = blk * N;
-        // Same expressions as the forward pass, so the skip decisions agree bit for bit.
-        const V dx = (mx - T(q * BW) - T(0.5)) - col_off;
-        const V dy = my - ((T(rb * BH) + row_off) + T(0.5));
-        const V pw = -(ha * dx * dx + hc * dy * dy) - (b * dy) * dx;
+        V dx, dy;  // the forward's expression, so the skip decisions agree bit for bit
+        const V pw = block_power<BW, BH>(mx, my, ha, b, hc, rb, q, col_off, row_off, dx, dy);
         const V Gv = SV::exp(pw);
         const V og = o * Gv;
         const V al = og < T(0.99) ? og : V{} + T(0.99);

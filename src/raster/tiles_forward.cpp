@@ -73,10 +73,8 @@ template <int BW, int BH, bool kFull, class T, class Res>
       const int blk = __builtin_ctzll(todo);
       const int br = blk / kBPR, q = blk % kBPR;
       const int p0 = blk * N;
-      // The same expressions (and so the same bits) as per block column and row.
-      const V dx = (mx - T(q * BW) - T(0.5)) - col_off;
-      const V dy = my - ((T(br * BH) + row_off) + T(0.5));
-      const V pw = -(ha * dx * dx + hc * dy * dy) - (b * dy) * dx;
+      V dx, dy;
+      const V pw = block_power<BW, BH>(mx, my, ha, b, hc, br, q, col_off, row_off, dx, dy);
       const V og = o * SV::exp(pw);
       const V al = og < T(0.99) ? og : V{} + T(0.99);
       const V Tp = vload<V>(Tt + p0);
