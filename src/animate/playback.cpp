@@ -78,17 +78,20 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
   for (int f = 0; f < F; ++f) {
     const auto t0 = std::chrono::steady_clock::now();
     cull.eye = cams[f].centre();
-    // Posed as the projection reads them (the same image as posing first).
-    renderer.render(motion.frames[f], cams[f], rs, rr, rep.culled ? &cull : nullptr);
+    // Posed as the projection reads them (the same image as posing first), unless the posed
+    // Gaussians are written too: then posed once and rendered.
+    if (o.ply) {
+      pose_avatar(avatar, motion.frames[f], g, nullptr, f > 0);
+      rasterize_forward(g, cams[f], rs, rr);
+    } else {
+      renderer.render(motion.frames[f], cams[f], rs, rr, rep.culled ? &cull : nullptr);
+    }
     render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     char name[32];
     std::snprintf(name, sizeof name, "%04d", f);
     pngs.push_back(staged.path(std::string(name) + ".png"));
     write_png(pngs.back(), rr.color);
-    if (o.ply) {
-      pose_avatar(avatar, motion.frames[f], g, nullptr, f > 0);
-      write_ply(staged.path(std::string(name) + ".ply"), g);
-    }
+    if (o.ply) write_ply(staged.path(std::string(name) + ".ply"), g);
     if (o.progress) prog.update(f + 1);
   }
   if (o.progress) prog.finish();
