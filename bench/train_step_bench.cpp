@@ -1,6 +1,7 @@
 // Google Benchmark: the per-step pieces of the avatar fit besides the decoders and the rasterizer,
 // at the CLI defaults: the Adam step over the 512x512x32 triplane (25.2M parameters) and the
-// triplane lookup forward / backward at 165,378 points (2-level template), the SSIM loss with
+// triplane lookup forward / backward at the 2-level template's 165,378 vertices (numbered by
+// the subdivision and along the trainer's Morton curve), the SSIM loss with
 // its gradient at 512x768, and the semantic Laplacian of the 2-level template, on 1 and 2
 // threads.
 #include <benchmark/benchmark.h>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "body/body_model.hpp"
+#include "mesh/morton.hpp"
 #include "mesh/trimesh.hpp"
 #include "reconstruct/adam.hpp"
 #include "reconstruct/losses.hpp"
@@ -38,17 +40,37 @@ void BM_AdamStep(benchmark::State& st) {
       benchmark::Counter(double(st.iterations()) * double(n), benchmark::Counter::kIsRate);
 }
 
+// The lookup points of a training step: the default body's template subdivided twice (165,378
+// vertices) in a box padded as the decoder pads it, numbered as the subdivision numbers them
+// (ordered = 0) or as the trainer does (1: along a Morton curve, mesh/morton.hpp).
 struct TriplaneFixture {
   ks::Triplane tp;
   std::vector<float> xs, ys, zs, feats, dfeats, dplanes;
-  explicit TriplaneFixture(int n) {
-    const float lo[3] = {-1.f, -1.f, -0.5f}, hi[3] = {1.f, 1.f, 0.5f};
+  int n = 0;
+  explicit TriplaneFixture(bool ordered) {
+    const ks::BodyModel& body = ks::default_body_model();
+    const ks::Subdivision sub = ks::subdivide(ks::TriMesh{body.v_template, body.faces}, 2);
+    const Eigen::MatrixXd& V = sub.mesh.V;
+    n = int(V.rows());
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = float(V.col(k).minCoeff() - 0.11), hi[k] = float(V.col(k).maxCoeff() + 0.11);
+    }
     tp.init(512, 32, lo, hi, 1);
-    std::mt19937 rng(5);
-    std::uniform_real_distribution<float> U(-1.f, 1.f);
     xs.resize(size_t(n)), ys.resize(size_t(n)), zs.resize(size_t(n));
     for (int i = 0; i < n; ++i)
-      xs[size_t(i)] = U(rng), ys[size_t(i)] = U(rng), zs[size_t(i)] = 0.5f * U(rng);
+      xs[size_t(i)] = float(V(i, 0)), ys[size_t(i)] = float(V(i, 1)),
+      zs[size_t(i)] = float(V(i, 2));
+    if (ordered) {
+      const std::vector<int> ord = ks::morton_order(V);
+      for (int k = 0; k < n; ++k) {
+        const long i = ord[size_t(k)];
+        xs[size_t(k)] = float(V(i, 0)), ys[size_t(k)] = float(V(i, 1)),
+        zs[size_t(k)] = float(V(i, 2));
+      }
+    }
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> U(-1.f, 1.f);
     feats.resize(size_t(n) * size_t(tp.feature_dim()));
     dfeats.resize(feats.size());
     for (auto& d : dfeats) d = U(rng);
@@ -56,10 +78,10 @@ struct TriplaneFixture {
   }
 };
 
-// Args: points, threads.
+// Args: ordered, threads.
 void BM_TriplaneForward(benchmark::State& st) {
-  const int n = int(st.range(0));
-  TriplaneFixture f(n);
+  TriplaneFixture f(st.range(0) != 0);
+  const int n = f.n;
   const int saved = omp_get_max_threads();
   omp_set_num_threads(int(st.range(1)));
   for (auto _ : st) {
@@ -69,21 +91,18 @@ void BM_TriplaneForward(benchmark::State& st) {
   omp_set_num_threads(saved);
 }
 
-// Zero the plane gradient, then accumulate. Args: points, threads, and whether the points'
-// bins are made once outside the loop (1, as the decoder does for its fixed anchors) or in
-// every call (0).
+// Zero the plane gradient, then accumulate, with the points' bins made once outside the loop (as
+// the decoder does for its fixed anchors). Args: ordered, threads.
 void BM_TriplaneBackward(benchmark::State& st) {
-  const int n = int(st.range(0));
-  TriplaneFixture f(n);
+  TriplaneFixture f(st.range(0) != 0);
+  const int n = f.n;
   const int saved = omp_get_max_threads();
   omp_set_num_threads(int(st.range(1)));
-  const bool cached = st.range(2) != 0;
-  ks::TriplaneBins bins;
-  if (cached) bins = ks::triplane_bins(f.tp, f.xs.data(), f.ys.data(), f.zs.data(), n);
+  const ks::TriplaneBins bins = ks::triplane_bins(f.tp, f.xs.data(), f.ys.data(), f.zs.data(), n);
   for (auto _ : st) {
     f.dplanes.assign(f.tp.size(), 0.f);
     ks::triplane_backward(f.tp, f.xs.data(), f.ys.data(), f.zs.data(), n, f.dfeats.data(),
-                          f.dplanes.data(), cached ? &bins : nullptr);
+                          f.dplanes.data(), &bins);
     benchmark::DoNotOptimize(f.dplanes.data());
   }
   omp_set_num_threads(saved);
@@ -156,13 +175,13 @@ BENCHMARK(BM_AdamStep)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_TriplaneForward)
-    ->ArgsProduct({{165378}, {1, 2}})
-    ->ArgNames({"n", "threads"})
+    ->ArgsProduct({{0, 1}, {1, 2}})
+    ->ArgNames({"ordered", "threads"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_TriplaneBackward)
-    ->ArgsProduct({{165378}, {1, 2}, {0, 1}})
-    ->ArgNames({"n", "threads", "bins_once"})
+    ->ArgsProduct({{0, 1}, {1, 2}})
+    ->ArgNames({"ordered", "threads"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK_MAIN();

@@ -14,6 +14,7 @@
 #include "core/error.hpp"
 #include "core/parallel_sum.hpp"
 #include "core/progress.hpp"
+#include "mesh/morton.hpp"
 #include "mesh/trimesh.hpp"
 #include "raster/rasterizer.hpp"
 #include "reconstruct/components/garment.hpp"
@@ -157,6 +158,7 @@ struct Trainer::Impl {
       body_stencil = Stencil(base.V.rows(), base.V.rows());
       body_stencil.setIdentity();
     }
+    number_along_curve();
     body_vertices = st.num_vertices();
     const Eigen::MatrixXd W = body_stencil * model.weights;
     top_k_skin_weights(W, 4, st.skin_joints, st.skin_weights);
@@ -165,6 +167,34 @@ struct Trainer::Impl {
     else
       st.part_labels.assign(body_vertices, 0);
     st.log_scale_bias.assign(body_vertices, 0.f);
+  }
+
+  // Renumbers the template's vertices along a Morton curve (mesh/morton.hpp): anchors, the
+  // stencil's rows and the faces (the skin weights and part labels follow through the stencil).
+  // The subdivision numbers new vertices edge by edge, so that neighbours in space lie far apart
+  // in the per-vertex arrays; in this order the decoder's triplane lookups and scatter find
+  // their texels in cache (docs/reconstruct.md, "Time and memory"). Each vertex's arithmetic is
+  // the same; sums over vertices (weight gradients, the scatter) add in another order.
+  void number_along_curve() {
+    const std::vector<int> ord = morton_order(st.anchors);
+    const int n = int(ord.size());
+    std::vector<int> renumbered(ord.size());
+    Eigen::MatrixXd anchors(n, 3);
+    std::vector<Eigen::Triplet<double>> entries;
+    entries.reserve(size_t(body_stencil.nonZeros()));
+    for (int k = 0; k < n; ++k) {
+      const int i = ord[size_t(k)];
+      renumbered[size_t(i)] = k;
+      anchors.row(k) = st.anchors.row(i);
+      for (Stencil::InnerIterator it(body_stencil, i); it; ++it)
+        entries.emplace_back(k, int(it.col()), it.value());
+    }
+    Stencil S(body_stencil.rows(), body_stencil.cols());
+    S.setFromTriplets(entries.begin(), entries.end());
+    body_stencil = std::move(S);
+    st.anchors = std::move(anchors);
+    for (long f = 0; f < st.faces.rows(); ++f)
+      for (int c = 0; c < 3; ++c) st.faces(f, c) = renumbered[size_t(st.faces(f, c))];
   }
 
   void setup_components() {

@@ -127,6 +127,7 @@ void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T
   if (bins->n != n || bins->res != tp.res)
     throw Error("triplane_backward: the bins are of other points or another plane size");
   const int stripes = bins->stripes;
+  constexpr int kAhead = 8;
   for (int parity = 0; parity < 2; ++parity) {
     const int per_plane = (stripes + 1 - parity) / 2;
 #pragma omp parallel for schedule(dynamic, 1) if (n > 1024)
@@ -136,8 +137,15 @@ void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T
       const int* st = bins->start.data() + size_t(p) * (stripes + 1);
       const int* ord = bins->order.data() + size_t(p) * n;
       T* base = dplanes + p * tp.plane_size();
-      for (int k = st[s]; k < st[s + 1]; ++k) {
+      const int end = st[s + 1];
+      for (int k = st[s]; k < end; ++k) {
         const int i = ord[k];
+        // The point gradients are read out of order: fetch a later point's ahead of its turn.
+        if (k + kAhead < end) {
+          const char* ahead =
+              reinterpret_cast<const char*>(dfeats + size_t(ord[k + kAhead]) * F + p * C);
+          for (int off = 0; off < int(sizeof(T)) * C; off += 64) __builtin_prefetch(ahead + off);
+        }
         const Bilinear<T> b = lookup(tp, p, xs[i], ys[i], zs[i]);
         const T* g = dfeats + size_t(i) * F + p * C;
         T* t00 = base + size_t(b.i00) * C;

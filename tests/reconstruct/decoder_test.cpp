@@ -1,9 +1,13 @@
 // The decoder with a subset: the decoded Gaussians and the gradients of the parameters are those
-// of the whole decode restricted to the subset (the others keep their last values).
+// of the whole decode restricted to the subset (the others keep their last values). The
+// template's numbering (the trainer numbers it along a Morton curve) does not show: its vertices
+// in another order decode to the same Gaussians.
 #include "reconstruct/decoder.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <numeric>
 #include <random>
 #include <vector>
 
@@ -101,6 +105,78 @@ TEST(Decoder, SubsetDecodesAndBackpropagatesOnlyItsGaussians) {
   std::vector<float> moved = f.xs;
   moved[0] += 0.01f;
   EXPECT_THROW(d.backward(moved, f.ys, f.zs, dm, doff, dls, dq, dop, dsh), Error);
+}
+
+// The same template with its vertices renumbered: every Gaussian decodes to the same bits (a
+// point's features and MLP outputs do not depend on where it is numbered), and the same upstream
+// gradients, renumbered, give the parameters the same gradients up to the order of the sums.
+TEST(Decoder, VertexOrderDoesNotChangeTheGaussians) {
+  Fixture f;
+  const int n = int(f.anchors.rows());
+  std::vector<int> perm(static_cast<size_t>(n));  // new vertex k is old vertex perm[k]
+  std::iota(perm.begin(), perm.end(), 0);
+  std::shuffle(perm.begin(), perm.end(), std::mt19937(11));
+  std::vector<int> inv(static_cast<size_t>(n));
+  for (int k = 0; k < n; ++k) inv[size_t(perm[size_t(k)])] = k;
+  Fixture g = f;
+  for (int k = 0; k < n; ++k) {
+    const size_t o = size_t(perm[size_t(k)]);
+    g.anchors.row(k) = f.anchors.row(long(o));
+    g.xs[size_t(k)] = f.xs[o], g.ys[size_t(k)] = f.ys[o], g.zs[size_t(k)] = f.zs[o];
+  }
+  for (long r = 0; r < g.faces.rows(); ++r)
+    for (int c = 0; c < 3; ++c) g.faces(r, c) = inv[size_t(f.faces(r, c))];
+  const float sh0[3] = {0.1f, 0.2f, 0.3f};
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> U(-1.f, 1.f);
+  std::vector<float> dm(3 * size_t(n)), doff(dm.size()), dls(dm.size()), dq(4 * size_t(n)),
+      dop(static_cast<size_t>(n)), dsh(dm.size());
+  for (auto* v : {&dm, &doff, &dls, &dq, &dop, &dsh})
+    for (float& x : *v) x = U(rng);
+  auto renumber = [&](const std::vector<float>& v, int dim) {
+    std::vector<float> r(v.size());
+    for (int k = 0; k < n; ++k)
+      for (int c = 0; c < dim; ++c)
+        r[size_t(dim) * size_t(k) + size_t(c)] =
+            v[size_t(dim) * size_t(perm[size_t(k)]) + size_t(c)];
+    return r;
+  };
+  struct Run {
+    Gaussians gs;
+    std::vector<float> off;
+    std::vector<std::vector<float>> grads;
+  };
+  auto run = [&](const Fixture& x, bool renumbered) {
+    Decoder d;
+    d.init(x.o, 3, x.anchors, x.faces, 0.f, sh0);
+    Adam adam;
+    d.add_parameters(adam, OptimizerOptions{});
+    Run r;
+    d.decode(x.anchors, x.xs, x.ys, x.zs, x.bias, r.gs, r.off);
+    auto up = [&](const std::vector<float>& v, int dim) {
+      return renumbered ? renumber(v, dim) : v;
+    };
+    d.backward(x.xs, x.ys, x.zs, up(dm, 3), up(doff, 3), up(dls, 3), up(dq, 4), up(dop, 1),
+               up(dsh, 3));
+    for (const AdamGroup& a : adam.groups()) r.grads.push_back(*a.grads);
+    return r;
+  };
+  const Run a = run(f, false), b = run(g, true);
+  EXPECT_EQ(renumber(a.gs.means, 3), b.gs.means);
+  EXPECT_EQ(renumber(a.gs.log_scales, 3), b.gs.log_scales);
+  EXPECT_EQ(renumber(a.gs.quats, 4), b.gs.quats);
+  EXPECT_EQ(renumber(a.gs.opacity_logits, 1), b.gs.opacity_logits);
+  EXPECT_EQ(renumber(a.gs.sh, 3), b.gs.sh);
+  EXPECT_EQ(renumber(a.off, 3), b.off);
+  ASSERT_EQ(a.grads.size(), b.grads.size());
+  for (size_t q = 0; q < a.grads.size(); ++q) {
+    ASSERT_EQ(a.grads[q].size(), b.grads[q].size());
+    double scale = 0;
+    for (float v : a.grads[q]) scale = std::max(scale, double(std::abs(v)));
+    EXPECT_GT(scale, 0);
+    for (size_t k = 0; k < a.grads[q].size(); ++k)
+      ASSERT_NEAR(a.grads[q][k], b.grads[q][k], 1e-5 * scale) << q << " " << k;
+  }
 }
 
 }  // namespace
