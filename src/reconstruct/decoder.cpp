@@ -84,8 +84,7 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
   triplane_forward(tp_, px, py, pz, m, feats_.data());
   Eigen::Map<const Mlp::Mat> X(feats_.data(), F, m);
   // Both MLPs read the features, which stay in feats_ until the backward: no copy in the caches.
-  mlp_forward(geo_, X, geo_cache_, Yg_, false);
-  mlp_forward(app_, X, app_cache_, Ya_, false);
+  mlp_forward_pair(geo_, app_, X, geo_cache_, Yg_, app_cache_, Ya_);
   // The outputs go to the last decode's Gaussians (a subset replaces only its own), which are
   // then copied out, so that what the caller's components add to `g` never accumulates.
   last_.sh_degree = 0;
@@ -153,9 +152,9 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
   ggeo_.zero_like(geo_);
   gapp_.zero_like(app_);
   // Both MLPs read the same features: the appearance MLP's input gradient is added to the
-  // geometry MLP's as it is written.
-  mlp_backward(geo_, geo_cache_, dYg_, ggeo_, &dX_, feats_.data());
-  mlp_backward(app_, app_cache_, dYa_, gapp_, &dX_, feats_.data(), true);
+  // geometry MLP's.
+  mlp_backward_pair(geo_, geo_cache_, dYg_, ggeo_, app_, app_cache_, dYa_, gapp_, dX_,
+                    feats_.data());
   // Only texels of the touched set are ever written (the points are the last decode's).
   if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_)
     throw Error("Decoder::backward: the points differ from the last decode's");

@@ -148,127 +148,180 @@ void size_forward_buffers(const MlpT<T>& m, const Eigen::Ref<const typename MlpT
   Y.resize(m.W[L - 1].rows(), X.cols());
 }
 
-void forward_avx2(const MlpT<float>& m, const Eigen::Ref<const MlpT<float>::Mat>& X,
-                  bool keep_input, MlpCacheT<float>& cache, MlpT<float>::Mat& Y) {
-  const size_t L = m.W.size();
+// One MLP of a forward over a shared input: its cache, its output and its packed weights.
+struct ForwardJob {
+  const MlpT<float>* m;
+  MlpCacheT<float>* cache;
+  MlpT<float>::Mat* Y;
+};
+
+// The MLPs of `jobs` on one input X, a sub-block of points through each in turn (so that the
+// later ones read the sub-block's input from L1); each job's results are those of a forward of
+// its MLP alone.
+void forward_avx2(const ForwardJob* jobs, int count, const Eigen::Ref<const MlpT<float>::Mat>& X,
+                  bool keep_input) {
   const Eigen::Index n = X.cols();
-  size_forward_buffers<float>(m, X, keep_input, cache, Y);
   // Caller-thread scratch, reused across calls; the OpenMP workers use it through this reference
   // (naming the thread_local inside the parallel region would give each worker its own copy).
-  static thread_local Packed packed;
-  Packed& pk = packed;
-  pk.pack(m, false);
+  static thread_local std::vector<Packed> packed;
+  std::vector<Packed>& pks = packed;
+  if (int(pks.size()) < count) pks.resize(size_t(count));
+  for (int q = 0; q < count; ++q) {
+    size_forward_buffers<float>(*jobs[q].m, X, keep_input, *jobs[q].cache, *jobs[q].Y);
+    pks[size_t(q)].pack(*jobs[q].m, false);
+  }
   const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (Eigen::Index bi = 0; bi < blocks; ++bi) {
     const Eigen::Index c0 = bi * kBlock, c1 = std::min(c0 + kBlock, n);
     for (Eigen::Index s0 = c0; s0 < c1; s0 += kSub) {
       const Eigen::Index len = std::min(kSub, c1 - s0);
-      // The input is kept for the backward pass (unless the caller keeps it); copied here, a
-      // sub-block at a time, so the first layer reads it from L1.
-      if (keep_input && X.outerStride() == X.rows())
-        std::memcpy(cache.act[0].data() + s0 * X.rows(), X.data() + s0 * X.rows(),
-                    sizeof(float) * size_t(len) * size_t(X.rows()));
-      else if (keep_input)
-        cache.act[0].middleCols(s0, len) = X.middleCols(s0, len);
-      for (size_t l = 0; l < L; ++l) {
-        const int in = int(m.W[l].cols()), out = int(m.W[l].rows());
-        const bool last = l + 1 == L;
-        float* dst = last ? Y.data() + s0 * out : cache.act[l + 1].data() + s0 * out;
-        const float* src = l == 0 && !keep_input ? X.data() : cache.act[l].data();
-        mk::gemm_cols_avx2(pk.data.data() + pk.w[l], out, in, src + s0 * in, in, int(len), dst, out,
-                           last ? mk::Epilogue::kBias : mk::Epilogue::kBiasRelu,
-                           pk.data.data() + pk.b[l], nullptr, 0);
+      for (int q = 0; q < count; ++q) {
+        const MlpT<float>& m = *jobs[q].m;
+        MlpCacheT<float>& cache = *jobs[q].cache;
+        MlpT<float>::Mat& Y = *jobs[q].Y;
+        const Packed& pk = pks[size_t(q)];
+        const size_t L = m.W.size();
+        // The input is kept for the backward pass (unless the caller keeps it); copied here, a
+        // sub-block at a time, so the first layer reads it from L1.
+        if (keep_input && X.outerStride() == X.rows())
+          std::memcpy(cache.act[0].data() + s0 * X.rows(), X.data() + s0 * X.rows(),
+                      sizeof(float) * size_t(len) * size_t(X.rows()));
+        else if (keep_input)
+          cache.act[0].middleCols(s0, len) = X.middleCols(s0, len);
+        for (size_t l = 0; l < L; ++l) {
+          const int in = int(m.W[l].cols()), out = int(m.W[l].rows());
+          const bool last = l + 1 == L;
+          float* dst = last ? Y.data() + s0 * out : cache.act[l + 1].data() + s0 * out;
+          const float* src = l == 0 && !keep_input ? X.data() : cache.act[l].data();
+          mk::gemm_cols_avx2(pk.data.data() + pk.w[l], out, in, src + s0 * in, in, int(len), dst,
+                             out, last ? mk::Epilogue::kBias : mk::Epilogue::kBiasRelu,
+                             pk.data.data() + pk.b[l], nullptr, 0);
+        }
       }
     }
   }
 }
 
-void backward_avx2(const MlpT<float>& m, const MlpCacheT<float>& cache,
-                   const Eigen::Ref<const MlpT<float>::Mat>& dY, MlpGradsT<float>& g,
-                   MlpT<float>::Mat* dX, const float* X0, bool add_dx) {
-  const int L = int(m.W.size());
-  if (g.W.size() != m.W.size()) g.zero_like(m);
-  const Eigen::Index n = dY.cols();
-  if (dX && !add_dx) dX->resize(m.W[0].cols(), n);
-  // Caller-thread scratch (see forward_avx2): transposed weights for din = W^T delta.
-  static thread_local Packed packed;
-  Packed& pk = packed;
-  pk.pack(m, true);
-  // Per-block gradient partials, rows padded: layer l's dW at gw[l], db at gb[l]. A layer whose
-  // output count pads badly (9 or 3 outputs from 64 inputs) accumulates dW^T = in delta^T
-  // instead (vectors along the inputs; pad8(in) x out, trans[l]).
-  std::vector<size_t> gw(static_cast<size_t>(L)), gbo(static_cast<size_t>(L));
-  std::vector<char> trans(static_cast<size_t>(L));
+// One MLP of a backward over a shared input: its forward's cache, the gradient of its output, its
+// gradients, whether it adds its input gradient to dX (else writes it), and the layout of its
+// per-block gradient partials (filled by backward_avx2).
+struct BackwardJob {
+  const MlpT<float>* m;
+  const MlpCacheT<float>* cache;
+  const Eigen::Ref<const MlpT<float>::Mat>* dY;
+  MlpGradsT<float>* g;
+  bool add_dx;
+  // Layer l's dW partial at gw[l], db at gbo[l]; trans[l]: accumulated as dW^T.
+  std::vector<size_t> gw, gbo;
+  std::vector<char> trans;
   size_t per_block = 0;
-  int maxdim = 0;
-  for (int l = 0; l < L; ++l) {
-    const int out = int(m.W[size_t(l)].rows()), in = int(m.W[size_t(l)].cols());
-    const size_t normal = size_t(mk::pad8(out)) * size_t(in);
-    const size_t transposed = size_t(mk::pad8(in)) * size_t(out);
-    trans[size_t(l)] = transposed < normal;
-    gw[size_t(l)] = per_block;
-    per_block += std::min(normal, transposed);
-    gbo[size_t(l)] = per_block;
-    per_block += size_t(mk::pad8(out));
-    maxdim = std::max(maxdim, in);
-  }
+};
+
+// The MLPs of `jobs`, whose forwards read the same input X0, a sub-block of points through each
+// in turn (their input gradients are written / added to dX in job order); each job's gradients
+// are those of a backward of its MLP alone.
+void backward_avx2(BackwardJob* jobs, int count, MlpT<float>::Mat* dX, const float* X0) {
+  const Eigen::Index n = (*jobs[0].dY).cols();
+  // Caller-thread scratch (see forward_avx2): transposed weights for din = W^T delta, and the
+  // per-block gradient partials.
+  static thread_local std::vector<Packed> packed;
+  static thread_local std::vector<std::vector<float>> partials;
+  std::vector<Packed>& pks = packed;
+  std::vector<std::vector<float>>& parts = partials;
+  if (int(pks.size()) < count) pks.resize(size_t(count));
+  if (int(parts.size()) < count) parts.resize(size_t(count));
   const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
-  static thread_local std::vector<float> partials;
-  std::vector<float>& part = partials;
-  part.resize(size_t(blocks) * per_block);
-  const Eigen::Index ldy = dY.outerStride();
+  int maxdim = 0;
+  for (int q = 0; q < count; ++q) {
+    BackwardJob& J = jobs[q];
+    const MlpT<float>& m = *J.m;
+    const int L = int(m.W.size());
+    if (J.g->W.size() != m.W.size()) J.g->zero_like(m);
+    if (dX && !J.add_dx) dX->resize(m.W[0].cols(), n);
+    pks[size_t(q)].pack(m, true);
+    // Rows padded. A layer whose output count pads badly (9 or 3 outputs from 32 or 64 inputs)
+    // accumulates dW^T = in delta^T instead (vectors along the inputs; pad8(in) x out).
+    J.gw.assign(size_t(L), 0), J.gbo.assign(size_t(L), 0), J.trans.assign(size_t(L), 0);
+    J.per_block = 0;
+    for (int l = 0; l < L; ++l) {
+      const int out = int(m.W[size_t(l)].rows()), in = int(m.W[size_t(l)].cols());
+      const size_t normal = size_t(mk::pad8(out)) * size_t(in);
+      const size_t transposed = size_t(mk::pad8(in)) * size_t(out);
+      J.trans[size_t(l)] = transposed < normal;
+      J.gw[size_t(l)] = J.per_block;
+      J.per_block += std::min(normal, transposed);
+      J.gbo[size_t(l)] = J.per_block;
+      J.per_block += size_t(mk::pad8(out));
+      maxdim = std::max(maxdim, in);
+    }
+    parts[size_t(q)].resize(size_t(blocks) * J.per_block);
+  }
 #pragma omp parallel for schedule(static) if (blocks > 1)
   for (Eigen::Index bi = 0; bi < blocks; ++bi) {
-    float* pb = part.data() + size_t(bi) * per_block;
-    std::fill(pb, pb + per_block, 0.f);
+    for (int q = 0; q < count; ++q) {
+      float* pb = parts[size_t(q)].data() + size_t(bi) * jobs[q].per_block;
+      std::fill(pb, pb + jobs[q].per_block, 0.f);
+    }
     static thread_local std::vector<float> scratch;
     scratch.resize(2 * size_t(kSub) * size_t(maxdim));
     const Eigen::Index c0 = bi * kBlock, c1 = std::min(c0 + kBlock, n);
     for (Eigen::Index s0 = c0; s0 < c1; s0 += kSub) {
       const int len = int(std::min(kSub, c1 - s0));
-      // delta = dL/d(pre-activation output of layer l), leading dim ld.
-      const float* delta = dY.data() + s0 * ldy;
-      Eigen::Index ld = ldy;
-      for (int l = L - 1; l >= 0; --l) {
-        const int in = int(m.W[size_t(l)].cols()), out = int(m.W[size_t(l)].rows());
-        const float* act = (l == 0 ? X0 : cache.act[size_t(l)].data()) + s0 * in;
-        if (trans[size_t(l)]) {
-          mk::outer_acc_avx2(act, in, in, delta, ld, out, len, pb + gw[size_t(l)], nullptr);
-          mk::rowsum_acc_avx2(delta, ld, out, len, pb + gbo[size_t(l)]);
-        } else {
-          mk::outer_acc_avx2(delta, ld, out, act, in, in, len, pb + gw[size_t(l)],
-                             pb + gbo[size_t(l)]);
+      for (int q = 0; q < count; ++q) {
+        const BackwardJob& J = jobs[q];
+        const MlpT<float>& m = *J.m;
+        const Packed& pk = pks[size_t(q)];
+        float* pb = parts[size_t(q)].data() + size_t(bi) * J.per_block;
+        const int L = int(m.W.size());
+        const Eigen::Index ldy = J.dY->outerStride();
+        // delta = dL/d(pre-activation output of layer l), leading dim ld.
+        const float* delta = J.dY->data() + s0 * ldy;
+        Eigen::Index ld = ldy;
+        for (int l = L - 1; l >= 0; --l) {
+          const int in = int(m.W[size_t(l)].cols()), out = int(m.W[size_t(l)].rows());
+          const float* act = (l == 0 ? X0 : J.cache->act[size_t(l)].data()) + s0 * in;
+          if (J.trans[size_t(l)]) {
+            mk::outer_acc_avx2(act, in, in, delta, ld, out, len, pb + J.gw[size_t(l)], nullptr);
+            mk::rowsum_acc_avx2(delta, ld, out, len, pb + J.gbo[size_t(l)]);
+          } else {
+            mk::outer_acc_avx2(delta, ld, out, act, in, in, len, pb + J.gw[size_t(l)],
+                               pb + J.gbo[size_t(l)]);
+          }
+          if (l == 0 && !dX) break;
+          float* dst = l > 0 ? scratch.data() + size_t(l % 2) * size_t(kSub) * size_t(maxdim)
+                             : dX->data() + s0 * in;
+          // l > 0: ReLU backward, the gradient passes where the layer's output act > 0.
+          mk::gemm_cols_avx2(
+              pk.data.data() + pk.w[size_t(l)], in, out, delta, ld, len, dst, in,
+              l > 0 ? mk::Epilogue::kMask : (J.add_dx ? mk::Epilogue::kAdd : mk::Epilogue::kNone),
+              nullptr, l > 0 ? act : nullptr, in);
+          delta = dst;
+          ld = in;
         }
-        if (l == 0 && !dX) break;
-        float* dst = l > 0 ? scratch.data() + size_t(l % 2) * size_t(kSub) * size_t(maxdim)
-                           : dX->data() + s0 * in;
-        // l > 0: ReLU backward, the gradient passes where the layer's output act > 0.
-        mk::gemm_cols_avx2(
-            pk.data.data() + pk.w[size_t(l)], in, out, delta, ld, len, dst, in,
-            l > 0 ? mk::Epilogue::kMask : (add_dx ? mk::Epilogue::kAdd : mk::Epilogue::kNone),
-            nullptr, l > 0 ? act : nullptr, in);
-        delta = dst;
-        ld = in;
       }
     }
   }
   // Sum the partials in block order (per element, independent of the thread count).
-  for (int l = 0; l < L; ++l) {
-    auto& GW = g.W[size_t(l)];
-    auto& GB = g.b[size_t(l)];
-    const int out = int(GW.rows()), in = int(GW.cols());
-    const bool tr = trans[size_t(l)] != 0;
-    // Element (i, j) of this layer's partial: dW at i * si + j * sj, db at gbo + i.
-    const size_t si = tr ? size_t(mk::pad8(in)) : 1, sj = tr ? 1 : size_t(mk::pad8(out));
+  for (int q = 0; q < count; ++q) {
+    const BackwardJob& J = jobs[q];
+    const std::vector<float>& part = parts[size_t(q)];
+    for (int l = 0; l < int(J.m->W.size()); ++l) {
+      auto& GW = J.g->W[size_t(l)];
+      auto& GB = J.g->b[size_t(l)];
+      const int out = int(GW.rows()), in = int(GW.cols());
+      const bool tr = J.trans[size_t(l)] != 0;
+      // Element (i, j) of this layer's partial: dW at i * si + j * sj, db at gbo + i.
+      const size_t si = tr ? size_t(mk::pad8(in)) : 1, sj = tr ? 1 : size_t(mk::pad8(out));
 #pragma omp parallel for schedule(static) if (size_t(blocks) * size_t(out) * size_t(in) > 100000)
-    for (int j = 0; j <= in; ++j) {  // j == in: the bias
-      float* dst = j < in ? GW.data() + size_t(j) * size_t(out) : GB.data();
-      const size_t off = j < in ? gw[size_t(l)] + size_t(j) * sj : gbo[size_t(l)];
-      const size_t step = j < in ? si : 1;
-      for (Eigen::Index bi = 0; bi < blocks; ++bi) {
-        const float* src = part.data() + size_t(bi) * per_block + off;
-        for (int i = 0; i < out; ++i) dst[i] += src[size_t(i) * step];
+      for (int j = 0; j <= in; ++j) {  // j == in: the bias
+        float* dst = j < in ? GW.data() + size_t(j) * size_t(out) : GB.data();
+        const size_t off = j < in ? J.gw[size_t(l)] + size_t(j) * sj : J.gbo[size_t(l)];
+        const size_t step = j < in ? si : 1;
+        for (Eigen::Index bi = 0; bi < blocks; ++bi) {
+          const float* src = part.data() + size_t(bi) * J.per_block + off;
+          for (int i = 0; i < out; ++i) dst[i] += src[size_t(i) * step];
+        }
       }
     }
   }
@@ -281,7 +334,8 @@ void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>
                  MlpCacheT<T>& cache, typename MlpT<T>::Mat& Y, bool keep_input) {
   if constexpr (std::is_same_v<T, float>) {
     if (mk::use_avx2()) {
-      forward_avx2(m, X, keep_input, cache, Y);
+      const ForwardJob job{&m, &cache, &Y};
+      forward_avx2(&job, 1, X, keep_input);
       return;
     }
   }
@@ -325,7 +379,8 @@ void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
     throw Error("mlp_backward: the gradient to add to has the wrong shape");
   if constexpr (std::is_same_v<T, float>) {
     if (mk::use_avx2()) {
-      backward_avx2(m, cache, dY, g, dX, X0, add_dx);
+      BackwardJob job{&m, &cache, &dY, &g, add_dx, {}, {}, {}, 0};
+      backward_avx2(&job, 1, dX, X0);
       return;
     }
   }
@@ -408,6 +463,44 @@ template struct MlpT<float>;
 template struct MlpT<double>;
 template struct MlpGradsT<float>;
 template struct MlpGradsT<double>;
+template <typename T>
+void mlp_forward_pair(const MlpT<T>& a, const MlpT<T>& b,
+                      const Eigen::Ref<const typename MlpT<T>::Mat>& X, MlpCacheT<T>& cache_a,
+                      typename MlpT<T>::Mat& Ya, MlpCacheT<T>& cache_b, typename MlpT<T>::Mat& Yb) {
+  if constexpr (std::is_same_v<T, float>) {
+    if (mk::use_avx2()) {
+      const ForwardJob jobs[2] = {{&a, &cache_a, &Ya}, {&b, &cache_b, &Yb}};
+      forward_avx2(jobs, 2, X, false);
+      return;
+    }
+  }
+  mlp_forward(a, X, cache_a, Ya, false);
+  mlp_forward(b, X, cache_b, Yb, false);
+}
+
+template <typename T>
+void mlp_backward_pair(const MlpT<T>& a, const MlpCacheT<T>& cache_a,
+                       const Eigen::Ref<const typename MlpT<T>::Mat>& dYa, MlpGradsT<T>& ga,
+                       const MlpT<T>& b, const MlpCacheT<T>& cache_b,
+                       const Eigen::Ref<const typename MlpT<T>::Mat>& dYb, MlpGradsT<T>& gb,
+                       typename MlpT<T>::Mat& dX, const T* X) {
+  if constexpr (std::is_same_v<T, float>) {
+    if (mk::use_avx2()) {
+      if (a.W.empty() || b.W.empty() || cache_a.act.size() != a.W.size() ||
+          cache_b.act.size() != b.W.size())
+        throw Error("mlp_backward_pair: a cache is not from a forward pass of its MLP");
+      if (!X || dYa.cols() != dYb.cols() || a.W[0].cols() != b.W[0].cols())
+        throw Error("mlp_backward_pair: the two MLPs do not share one input");
+      BackwardJob jobs[2] = {{&a, &cache_a, &dYa, &ga, false, {}, {}, {}, 0},
+                             {&b, &cache_b, &dYb, &gb, true, {}, {}, {}, 0}};
+      backward_avx2(jobs, 2, &dX, X);
+      return;
+    }
+  }
+  mlp_backward(a, cache_a, dYa, ga, &dX, X);
+  mlp_backward(b, cache_b, dYb, gb, &dX, X, true);
+}
+
 template void mlp_forward(const MlpT<float>&, const Eigen::Ref<const MlpT<float>::Mat>&,
                           MlpCacheT<float>&, MlpT<float>::Mat&, bool);
 template void mlp_forward(const MlpT<double>&, const Eigen::Ref<const MlpT<double>::Mat>&,
@@ -418,5 +511,21 @@ template void mlp_backward(const MlpT<float>&, const MlpCacheT<float>&,
 template void mlp_backward(const MlpT<double>&, const MlpCacheT<double>&,
                            const Eigen::Ref<const MlpT<double>::Mat>&, MlpGradsT<double>&,
                            MlpT<double>::Mat*, const double*, bool);
+template void mlp_forward_pair(const MlpT<float>&, const MlpT<float>&,
+                               const Eigen::Ref<const MlpT<float>::Mat>&, MlpCacheT<float>&,
+                               MlpT<float>::Mat&, MlpCacheT<float>&, MlpT<float>::Mat&);
+template void mlp_forward_pair(const MlpT<double>&, const MlpT<double>&,
+                               const Eigen::Ref<const MlpT<double>::Mat>&, MlpCacheT<double>&,
+                               MlpT<double>::Mat&, MlpCacheT<double>&, MlpT<double>::Mat&);
+template void mlp_backward_pair(const MlpT<float>&, const MlpCacheT<float>&,
+                                const Eigen::Ref<const MlpT<float>::Mat>&, MlpGradsT<float>&,
+                                const MlpT<float>&, const MlpCacheT<float>&,
+                                const Eigen::Ref<const MlpT<float>::Mat>&, MlpGradsT<float>&,
+                                MlpT<float>::Mat&, const float*);
+template void mlp_backward_pair(const MlpT<double>&, const MlpCacheT<double>&,
+                                const Eigen::Ref<const MlpT<double>::Mat>&, MlpGradsT<double>&,
+                                const MlpT<double>&, const MlpCacheT<double>&,
+                                const Eigen::Ref<const MlpT<double>::Mat>&, MlpGradsT<double>&,
+                                MlpT<double>::Mat&, const double*);
 
 }  // namespace ks

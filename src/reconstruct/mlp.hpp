@@ -61,6 +61,24 @@ void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
                   const Eigen::Ref<const typename MlpT<T>::Mat>& dY, MlpGradsT<T>& g,
                   typename MlpT<T>::Mat* dX, const T* X = nullptr, bool add_dx = false);
 
+// Two MLPs on one input X (in x N, contiguous, not kept: the decoder's two heads on the triplane
+// features): the same results, bit for bit, as mlp_forward(a, X, cache_a, Ya, false) then
+// mlp_forward(b, X, cache_b, Yb, false), with the AVX2 kernels a few points at a time through
+// both, so that X is read from memory once instead of twice.
+template <typename T>
+void mlp_forward_pair(const MlpT<T>& a, const MlpT<T>& b,
+                      const Eigen::Ref<const typename MlpT<T>::Mat>& X, MlpCacheT<T>& cache_a,
+                      typename MlpT<T>::Mat& Ya, MlpCacheT<T>& cache_b, typename MlpT<T>::Mat& Yb);
+// Their backward: the same results, bit for bit, as mlp_backward(a, cache_a, dYa, ga, &dX, X)
+// then mlp_backward(b, cache_b, dYb, gb, &dX, X, true) (dX = a's input gradient plus b's), the
+// AVX2 path again a few points at a time through both. X: the forwards' input.
+template <typename T>
+void mlp_backward_pair(const MlpT<T>& a, const MlpCacheT<T>& cache_a,
+                       const Eigen::Ref<const typename MlpT<T>::Mat>& dYa, MlpGradsT<T>& ga,
+                       const MlpT<T>& b, const MlpCacheT<T>& cache_b,
+                       const Eigen::Ref<const typename MlpT<T>::Mat>& dYb, MlpGradsT<T>& gb,
+                       typename MlpT<T>::Mat& dX, const T* X);
+
 using Mlp = MlpT<float>;
 using MlpCache = MlpCacheT<float>;
 using MlpGrads = MlpGradsT<float>;

@@ -233,6 +233,65 @@ TEST(MlpKernels, InputGradientAddedInPlace) {
   }
 }
 
+// The pair (the decoder's two heads a few points at a time through both) against the two MLPs
+// one after the other: outputs, weight gradients and the summed input gradient bit for bit, on
+// both paths and on 1 and 2 threads (several blocks, a tail sub-block); mismatched MLPs refused.
+TEST(MlpKernels, PairGivesTheSameBitsAsTwoPasses) {
+  for (mk::Path path : {mk::Path::kEigen, mk::Path::kAvx2}) {
+    if (path == mk::Path::kAvx2 && !mk::cpu_has_avx2_fma()) continue;
+    PathGuard guard(path);
+    Mlp a, b;
+    a.init({96, 32, 32, 9}, 7, 0.5f);
+    b.init({96, 32, 32, 3}, 8, 0.5f);
+    std::mt19937_64 rng(10);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    const int n = 4133;
+    Mlp::Mat X(96, n), dYa(9, n), dYb(3, n);
+    fill_uniform(X, u, rng);
+    fill_uniform(dYa, u, rng);
+    fill_uniform(dYb, u, rng);
+    MlpCache ca, cb;
+    Mlp::Mat Ya, Yb, dX;
+    mlp_forward(a, X, ca, Ya, false);
+    mlp_forward(b, X, cb, Yb, false);
+    MlpGrads ga, gb;
+    ga.zero_like(a), gb.zero_like(b);
+    mlp_backward(a, ca, dYa, ga, &dX, X.data());
+    mlp_backward(b, cb, dYb, gb, &dX, X.data(), true);
+#ifdef _OPENMP
+    const int saved = omp_get_max_threads();
+#endif
+    for (int threads : {1, 2}) {
+#ifdef _OPENMP
+      omp_set_num_threads(threads);
+#endif
+      SCOPED_TRACE(::testing::Message() << "threads " << threads);
+      MlpCache pa, pb;
+      Mlp::Mat Pa, Pb, pdX;
+      mlp_forward_pair(a, b, X, pa, Pa, pb, Pb);
+      EXPECT_EQ(Pa, Ya);
+      EXPECT_EQ(Pb, Yb);
+      MlpGrads qa, qb;
+      qa.zero_like(a), qb.zero_like(b);
+      mlp_backward_pair(a, pa, dYa, qa, b, pb, dYb, qb, pdX, X.data());
+      EXPECT_EQ(pdX, dX);
+      for (size_t l = 0; l < a.W.size(); ++l) {
+        EXPECT_EQ(qa.W[l], ga.W[l]);
+        EXPECT_EQ(qa.b[l], ga.b[l]);
+        EXPECT_EQ(qb.W[l], gb.W[l]);
+        EXPECT_EQ(qb.b[l], gb.b[l]);
+      }
+      if (path == mk::Path::kAvx2) {
+        const Mlp::Mat short_dY = dYb.leftCols(n - 1);
+        EXPECT_THROW(mlp_backward_pair(a, pa, dYa, qa, b, pb, short_dY, qb, pdX, X.data()), Error);
+      }
+    }
+#ifdef _OPENMP
+    omp_set_num_threads(saved);
+#endif
+  }
+}
+
 // An empty batch gives empty outputs and leaves the gradients as they were (both paths).
 TEST(MlpKernels, EmptyBatch) {
   for (mk::Path path : {mk::Path::kEigen, mk::Path::kAvx2}) {
