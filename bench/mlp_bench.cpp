@@ -1,7 +1,8 @@
 // Google Benchmark: the avatar decoders (96 -> H -> H -> 9 geometry, 96 -> H -> H -> 3
 // appearance; H = 32, the CLI default, or 64) at the trainer's point counts (template with 1 and 2
 // Loop levels), forward and forward + backward (with dL/dX, as the trainer calls it), on 1 and 2
-// OpenMP threads.
+// OpenMP threads; and the decoder's two heads on one input as the trainer runs them, one after the
+// other or as a pair (mlp_forward_pair / mlp_backward_pair).
 // KS_MLP_NO_AVX2=1 selects the Eigen path.
 #include <benchmark/benchmark.h>
 #include <omp.h>
@@ -61,6 +62,34 @@ void BM_ForwardBackward(benchmark::State& st) {
                                                benchmark::Counter::kIsRate);
 }
 
+// Both heads (32 wide) on one input, forward and backward with the summed input gradient, the
+// input not kept (the decoder's calls). Args: points, threads, pair (0: one MLP after the other,
+// 1: mlp_forward_pair / mlp_backward_pair).
+void BM_Heads(benchmark::State& st) {
+  const int n = int(st.range(0));
+  Fixture geo(9, n, 32), app(3, n, 32);
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(int(st.range(1)));
+  const bool pair = st.range(2) != 0;
+  const ks::Mlp::Mat& X = geo.X;
+  for (auto _ : st) {
+    geo.g.zero_like(geo.m);
+    app.g.zero_like(app.m);
+    if (pair) {
+      ks::mlp_forward_pair(geo.m, app.m, X, geo.cache, geo.Y, app.cache, app.Y);
+      ks::mlp_backward_pair(geo.m, geo.cache, geo.dY, geo.g, app.m, app.cache, app.dY, app.g,
+                            geo.dX, X.data());
+    } else {
+      ks::mlp_forward(geo.m, X, geo.cache, geo.Y, false);
+      ks::mlp_forward(app.m, X, app.cache, app.Y, false);
+      ks::mlp_backward(geo.m, geo.cache, geo.dY, geo.g, &geo.dX, X.data());
+      ks::mlp_backward(app.m, app.cache, app.dY, app.g, &geo.dX, X.data(), true);
+    }
+    benchmark::DoNotOptimize(geo.dX.data());
+  }
+  omp_set_num_threads(saved);
+}
+
 void Args(benchmark::internal::Benchmark* b) {
   for (int hidden : {32, 64})
     for (int threads : {1, 2})
@@ -73,4 +102,9 @@ void Args(benchmark::internal::Benchmark* b) {
 
 BENCHMARK(BM_Forward)->Apply(Args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_ForwardBackward)->Apply(Args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Heads)
+    ->ArgsProduct({{165378}, {1, 2}, {0, 1}})
+    ->ArgNames({"n", "threads", "pair"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_MAIN();
