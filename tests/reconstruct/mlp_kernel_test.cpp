@@ -198,6 +198,23 @@ TEST(MlpKernels, InputNotKeptGivesTheSameResults) {
   EXPECT_EQ(g1.W[0], g2.W[0]);
 }
 
+// The decoder's two heads on one input: a geometry MLP (96 -> 32 -> 32 -> 9) and a second one of
+// the given shape, with random inputs and output gradients.
+struct TwoHeads {
+  Mlp a, b;
+  Mlp::Mat X, dYa, dYb;
+  TwoHeads(const std::vector<int>& b_dims, uint64_t seed, int n) {
+    a.init({96, 32, 32, 9}, 7, 0.5f);
+    b.init(b_dims, 8, 0.5f);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    X.resize(96, n), dYa.resize(9, n), dYb.resize(b_dims.back(), n);
+    fill_uniform(X, u, rng);
+    fill_uniform(dYa, u, rng);
+    fill_uniform(dYb, u, rng);
+  }
+};
+
 // Two MLPs on one input (the decoder): the second's input gradient added to the first's as it
 // is written is the sum of the two, bit for bit, on both paths; a gradient of the wrong shape to
 // add to is refused.
@@ -205,16 +222,10 @@ TEST(MlpKernels, InputGradientAddedInPlace) {
   for (mk::Path path : {mk::Path::kEigen, mk::Path::kAvx2}) {
     if (path == mk::Path::kAvx2 && !mk::cpu_has_avx2_fma()) continue;
     PathGuard guard(path);
-    Mlp a, b;
-    a.init({96, 32, 32, 9}, 7, 0.5f);
-    b.init({96, 32, 3}, 8, 0.5f);
-    std::mt19937_64 rng(9);
-    std::uniform_real_distribution<float> u(-1.f, 1.f);
-    const int n = 2051;
-    Mlp::Mat X(96, n), dYa(9, n), dYb(3, n);
-    fill_uniform(X, u, rng);
-    fill_uniform(dYa, u, rng);
-    fill_uniform(dYb, u, rng);
+    const TwoHeads h({96, 32, 3}, 9, 2051);
+    const Mlp &a = h.a, &b = h.b;
+    const Mlp::Mat &X = h.X, &dYa = h.dYa, &dYb = h.dYb;
+    const int n = int(X.cols());
     MlpCache ca, cb;
     Mlp::Mat Ya, Yb, dXa, dXb, dX;
     mlp_forward(a, X, ca, Ya, false);
@@ -240,16 +251,10 @@ TEST(MlpKernels, PairGivesTheSameBitsAsTwoPasses) {
   for (mk::Path path : {mk::Path::kEigen, mk::Path::kAvx2}) {
     if (path == mk::Path::kAvx2 && !mk::cpu_has_avx2_fma()) continue;
     PathGuard guard(path);
-    Mlp a, b;
-    a.init({96, 32, 32, 9}, 7, 0.5f);
-    b.init({96, 32, 32, 3}, 8, 0.5f);
-    std::mt19937_64 rng(10);
-    std::uniform_real_distribution<float> u(-1.f, 1.f);
-    const int n = 4133;
-    Mlp::Mat X(96, n), dYa(9, n), dYb(3, n);
-    fill_uniform(X, u, rng);
-    fill_uniform(dYa, u, rng);
-    fill_uniform(dYb, u, rng);
+    const TwoHeads h({96, 32, 32, 3}, 10, 4133);
+    const Mlp &a = h.a, &b = h.b;
+    const Mlp::Mat &X = h.X, &dYa = h.dYa, &dYb = h.dYb;
+    const int n = int(X.cols());
     MlpCache ca, cb;
     Mlp::Mat Ya, Yb, dX;
     mlp_forward(a, X, ca, Ya, false);
