@@ -148,7 +148,7 @@ void size_forward_buffers(const MlpT<T>& m, const Eigen::Ref<const typename MlpT
   Y.resize(m.W[L - 1].rows(), X.cols());
 }
 
-// One MLP of a forward over a shared input: its cache, its output and its packed weights.
+// One MLP of a forward over a shared input: the MLP, its cache and its output.
 struct ForwardJob {
   const MlpT<float>* m;
   MlpCacheT<float>* cache;
