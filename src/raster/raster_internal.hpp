@@ -117,6 +117,29 @@ struct Simd<float, CW> {
     const I bits = (__builtin_convertvector(k, I) + 127) << 23;
     return p * (V)bits;
   }
+  // exp of K vectors, the same operations as exp, each step for all K before the next: the
+  // K dependency chains sit side by side in the instruction stream, so the core overlaps
+  // them (one exp is a chain of about 15 dependent operations).
+  template <int K>
+  [[gnu::always_inline]] static void exp_group(const V* x_in, V* out) {
+    V x[K], k[K], r[K], r2[K], r4[K], p[K];
+    const V lo = V{} - 87.0f;
+    for (int g = 0; g < K; ++g) x[g] = x_in[g] < lo ? lo : x_in[g];
+    for (int g = 0; g < K; ++g) k[g] = (x[g] * 1.4426950408889634f + 12582912.0f) - 12582912.0f;
+    for (int g = 0; g < K; ++g)
+      r[g] = (x[g] - k[g] * 0.693145751953125f) - k[g] * 1.428606765330187e-06f;
+    for (int g = 0; g < K; ++g) r2[g] = r[g] * r[g];
+    for (int g = 0; g < K; ++g) r4[g] = r2[g] * r2[g];
+    for (int g = 0; g < K; ++g) {
+      const V p01 = r[g] + 1.0f, p23 = r[g] * (1.0f / 6.0f) + 0.5f,
+              p45 = r[g] * (1.0f / 120.0f) + 1.0f / 24.0f;
+      p[g] = (p01 + r2[g] * p23) + r4[g] * (p45 + r2[g] * (1.0f / 720.0f));
+    }
+    for (int g = 0; g < K; ++g) {
+      const I bits = (__builtin_convertvector(k[g], I) + 127) << 23;
+      out[g] = p[g] * (V)bits;
+    }
+  }
   // Number of set lanes of a comparison mask.
   [[gnu::always_inline]] static int count(const I& m) {
 #if defined(__SSE2__)
@@ -140,6 +163,22 @@ struct Simd<float, CW> {
     for (int l = 0; l < CW; ++l) n -= int(m[l]);
     return n;
   }
+  // Whether every lane's sign bit is set (every pixel of a block finished).
+  [[gnu::always_inline]] static bool all_negative(const V& v) {
+#if defined(__SSE2__)
+    if constexpr (CW == 4) return _mm_movemask_ps((__m128)v) == 0xf;
+    if constexpr (CW == 8) {
+      // The lanes' bits and-ed by halves (generic vector code, as count above).
+      const I m = (I)v;
+      const I h = m & __builtin_shufflevector(m, m, 4, 5, 6, 7, 0, 1, 2, 3);
+      const I q = h & __builtin_shufflevector(h, h, 2, 3, 0, 1, 2, 3, 0, 1);
+      return (q[0] & q[1]) < 0;
+    }
+#endif
+    for (int l = 0; l < CW; ++l)
+      if (!(v[l] < 0)) return false;
+    return true;
+  }
 };
 template <int CW>
 struct Simd<double, CW> {
@@ -150,10 +189,19 @@ struct Simd<double, CW> {
     for (int l = 0; l < CW; ++l) x[l] = std::exp(x[l]);
     return x;
   }
+  template <int K>
+  static void exp_group(const V* x, V* out) {
+    for (int g = 0; g < K; ++g) out[g] = exp(x[g]);
+  }
   static int count(const I& m) {
     int n = 0;
     for (int l = 0; l < CW; ++l) n -= int(m[l]);
     return n;
+  }
+  static bool all_negative(const V& v) {
+    for (int l = 0; l < CW; ++l)
+      if (!(v[l] < 0)) return false;
+    return true;
   }
 };
 
@@ -189,6 +237,21 @@ template <int BW, int BH, class V, class T>
   dx = (mx - T(q * BW) - T(0.5)) - col_off;
   dy = my - ((T(br * BH) + row_off) + T(0.5));
   return -(ha * dx * dx + hc * dy * dy) - (b * dy) * dx;
+}
+
+// block_power for K Gaussians at once (centres mx, my and half conics ha, b, hc given per
+// Gaussian), each step for all K before the next so that their chains overlap; the same
+// operations per lane as block_power.
+template <int BW, int BH, int K, class V, class T>
+[[gnu::always_inline]] inline void block_power_group(const T* mx, const T* my, const T* ha,
+                                                     const T* b, const T* hc, int br, int q,
+                                                     const V& col_off, const V& row_off, V* pw) {
+  V dx[K], dy[K];
+  for (int g = 0; g < K; ++g) dx[g] = (mx[g] - T(q * BW) - T(0.5)) - col_off;
+  for (int g = 0; g < K; ++g) dy[g] = my[g] - ((T(br * BH) + row_off) + T(0.5));
+  for (int g = 0; g < K; ++g) pw[g] = ha[g] * dx[g] * dx[g];
+  for (int g = 0; g < K; ++g) pw[g] = pw[g] + hc[g] * dy[g] * dy[g];
+  for (int g = 0; g < K; ++g) pw[g] = -pw[g] - (b[g] * dy[g]) * dx[g];
 }
 
 // A visible Gaussian's tiles (RasterResultT::tile_rects) as two words, tx0 | tx1 << 16 and

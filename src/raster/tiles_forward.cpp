@@ -13,13 +13,43 @@ namespace ks::raster {
 
 namespace {
 
-// How many list entries ahead the tile loop fetches a record.
-constexpr uint32_t kPrefetch = 8;
+// How many list entries ahead the gathering loop fetches a record.
+constexpr uint32_t kPrefetch = 32;
+// List entries gathered at a time: their records into the batch's arrays, and each block's
+// share of them into the block's list (slots fit a byte).
+constexpr int kGather = 252;
+// Gaussians a block takes at a time (its list padded with the empty slot kGather).
+constexpr int kGroup = 4;
+
+// The sign bits of 8 int32 lanes (vmovmskps; only the AVX2 kernel instantiates it: a generic
+// template cannot call the AVX intrinsic, which needs the target in the caller itself).
+#if defined(__x86_64__)
+constexpr bool kHaveSignBits8 = true;
+template <class VI>
+[[gnu::always_inline]] inline uint32_t sign_bits8(const VI& v) {
+  static_assert(sizeof(VI) == 32, "8 lanes of 32 bits");
+  uint32_t r;
+  asm("vmovmskps %1, %0" : "=r"(r) : "x"(v));
+  return r;
+}
+#else
+constexpr bool kHaveSignBits8 = false;
+template <class VI>
+uint32_t sign_bits8(const VI&) {
+  return 0;
+}
+#endif
 
 // One tile of the forward pass. One SIMD vector is a block of BW x BH pixels (BW columns of BH
 // rows); the tile's pixel state is kept block by block (block_index). kFull: also the expected
 // depth and the backward's state (last contributor, final transmittance). Every block shape
 // does the same arithmetic per pixel, operation for operation, so all give the same image.
+//
+// The tile's list is taken kGather entries at a time: the records of the entries whose box holds
+// a block still to be done are copied into the batch (structure of arrays) and each such block
+// gets the entry's slot in its own list. Then each block runs through its list with its pixels'
+// state in registers, in list order (so each pixel sees the same Gaussians in the same order as
+// entry by entry), and stops as soon as all its pixels are finished.
 template <int BW, int BH, bool kFull, class T, class Res>
 [[gnu::always_inline]] inline void composite_tile(Res& out, int tile, int tiles_x, int W, int H,
                                                   const T* bg) {
@@ -33,68 +63,137 @@ template <int BW, int BH, bool kFull, class T, class Res>
   // A pixel is finished (transmittance would fall below 1e-4, or outside the image) when its
   // Tt is negative; |Tt| is its transmittance.
   alignas(64) SI last[kTilePixels];
-  int block_live[kBlocks];  // live pixels per block
-  int tile_live = 0;
-  for (int q = 0; q < kBlocks; ++q) block_live[q] = 0;
+  // The blocks with a pixel still to be done, as bits (block br * kBPR + q).
+  uint64_t live = 0;
   for (int r = 0; r < kTS; ++r)
     for (int c = 0; c < kTS; ++c) {
       const int p = block_index<BW, BH>(c, r);
       const bool in = ox + c < W && oy + r < H;
       Tt[p] = in ? T(1) : T(-1), C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
-      block_live[p / N] += in;
-      tile_live += in;
+      live |= uint64_t(in) << (p / N);
     }
-  // The live blocks as bits (block br * kBPR + q), and a bit in each block row's first column:
-  // a Gaussian whose box holds no live block is skipped whole (at a silhouette the background
-  // pixels keep a tile going through the body's deeper layers).
-  uint64_t live = 0;
-  for (int q = 0; q < kBlocks; ++q) live |= uint64_t(block_live[q] > 0) << q;
+  // The batch: per slot the Gaussian's centre (tile-local), half conic, opacity, colour, depth
+  // and its 1-based position in the tile's list; per block the slots that cover it.
+  constexpr int kSlots = kGather + 1;
+  alignas(64) T gx[kSlots], gy[kSlots], gha[kSlots], gb[kSlots], ghc[kSlots], go[kSlots],
+      gr[kSlots], gg[kSlots], gbl[kSlots], gz[kSlots];
+  alignas(64) SI gidx[kSlots];
+  alignas(64) uint8_t lists[kBlocks][kGather + kGroup];
+  gx[kGather] = gy[kGather] = gha[kGather] = gb[kGather] = ghc[kGather] = go[kGather] = 0;
+  gr[kGather] = gg[kGather] = gbl[kGather] = gz[kGather] = 0;
+  gidx[kGather] = 0;
+  int nlist[kBlocks];
+  // With 32 blocks of 8 lanes, each slot's blocks as bits, turned into the blocks' lists by
+  // the lanes' sign bits (8 slots a step) instead of one list append per block and slot.
+  constexpr bool kByMasks = kHaveSignBits8 && kBlocks == 32 && N == 8 && std::is_same_v<T, float>;
+  alignas(64) uint32_t slot_blocks[kByMasks ? kGather + 8 : 1];
   const V col_off = block_columns<V, BW, BH>(), row_off = block_rows<V, BW, BH>();
   const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
-  for (uint32_t e = start; e < end && tile_live > 0; ++e) {
-    // The records are gathered through the tile's list: fetch a few ahead.
-    if (e + kPrefetch < end)
-      __builtin_prefetch(&out.packed[size_t(kRec) * out.point_list[e + kPrefetch]]);
-    const T* rec = &out.packed[size_t(kRec) * out.point_list[e]];
-    const T mx = rec[0] - T(ox), my = rec[1] - T(oy);
-    const T a = rec[2], b = rec[3], c = rec[4], o = rec[5];
-    const T cr = rec[6], cg = rec[7], cb = rec[8], zz = rec[9];
-    const int q0 = std::max(int(rec[10]) - ox, 0) / BW;
-    const int q1 = std::min(int(rec[11]) - ox, kTS - 1) / BW;
-    const int br0 = std::max(int(rec[12]) - oy, 0) / BH;
-    const int br1 = std::min(int(rec[13]) - oy, kTS - 1) / BH;
-    // The live blocks of the Gaussian's box, visited by their bits (no nested loops of varying
-    // length to mispredict; a block finished meanwhile is not in the box again).
-    uint64_t todo = live & box_blocks<BW, BH>(q0, q1, br0, br1);
-    if (!todo) continue;
-    const int32_t idx1 = int32_t(e - start) + 1;
-    const T ha = T(0.5) * a, hc = T(0.5) * c;
-    for (; todo; todo &= todo - 1) {
-      const int blk = __builtin_ctzll(todo);
+  for (uint32_t e = start; e < std::min(end, start + kPrefetch); ++e)
+    __builtin_prefetch(&out.packed[size_t(kRec) * out.point_list[e]]);
+  for (uint32_t e0 = start; e0 < end && live; e0 += kGather) {
+    const uint32_t e1 = std::min(end, e0 + uint32_t(kGather));
+    if constexpr (!kByMasks)
+      for (uint64_t m = live; m; m &= m - 1) nlist[__builtin_ctzll(m)] = 0;
+    int n = 0;
+    uint64_t covered = 0;
+    for (uint32_t e = e0; e < e1; ++e) {
+      // The records are gathered through the tile's list: fetch a few ahead.
+      if (e + kPrefetch < end)
+        __builtin_prefetch(&out.packed[size_t(kRec) * out.point_list[e + kPrefetch]]);
+      const T* rec = &out.packed[size_t(kRec) * out.point_list[e]];
+      const int q0 = std::max(int(rec[10]) - ox, 0) / BW;
+      const int q1 = std::min(int(rec[11]) - ox, kTS - 1) / BW;
+      const int br0 = std::max(int(rec[12]) - oy, 0) / BH;
+      const int br1 = std::min(int(rec[13]) - oy, kTS - 1) / BH;
+      uint64_t todo = live & box_blocks<BW, BH>(q0, q1, br0, br1);
+      if (!todo) continue;
+      gx[n] = rec[0] - T(ox), gy[n] = rec[1] - T(oy);
+      gha[n] = T(0.5) * rec[2], gb[n] = rec[3], ghc[n] = T(0.5) * rec[4], go[n] = rec[5];
+      gr[n] = rec[6], gg[n] = rec[7], gbl[n] = rec[8], gz[n] = rec[9];
+      gidx[n] = SI(e - start + 1);
+      if constexpr (kByMasks) {
+        slot_blocks[n] = uint32_t(todo);
+        covered |= todo;
+      } else {
+        for (; todo; todo &= todo - 1) {
+          const int blk = __builtin_ctzll(todo);
+          lists[blk][nlist[blk]++] = uint8_t(n);
+        }
+      }
+      ++n;
+    }
+    if (!n) continue;
+    if constexpr (kByMasks) {
+      for (int k = n; k % 8; ++k) slot_blocks[k] = 0;
+      for (uint64_t m = covered; m; m &= m - 1) {
+        const int blk = __builtin_ctzll(m);
+        uint8_t* li = lists[blk];
+        int cnt = 0;
+        for (int s0 = 0; s0 < n; s0 += 64) {
+          uint64_t word = 0;
+          for (int k = 0; k < 8 && s0 + 8 * k < n; ++k) {
+            const VI v = vload<VI>(slot_blocks + s0 + 8 * k) << (31 - blk);
+            word |= uint64_t(sign_bits8(v)) << (8 * k);
+          }
+          for (; word; word &= word - 1) li[cnt++] = uint8_t(s0 + __builtin_ctzll(word));
+        }
+        nlist[blk] = cnt;
+      }
+    }
+    for (uint64_t m = kByMasks ? live & covered : live; m; m &= m - 1) {
+      const int blk = __builtin_ctzll(m);
+      const int cnt = nlist[blk];
+      if (!cnt) continue;
       const int br = blk / kBPR, q = blk % kBPR;
       const int p0 = blk * N;
-      V dx, dy;
-      const V pw = block_power<BW, BH>(mx, my, ha, b, hc, br, q, col_off, row_off, dx, dy);
-      const V og = o * SV::exp(pw);
-      const V al = og < T(0.99) ? og : V{} + T(0.99);
-      const V Tp = vload<V>(Tt + p0);
-      const VI ok = (pw <= T(0)) & (al >= T(1.0f / 255.0f)) & (Tp > T(0));
-      const V Tn = Tp * (T(1) - al);
-      const VI term = ok & (Tn < T(1e-4));
-      const VI con = ok & ~term;
-      const V w = con ? al * Tp : V{};
-      vstore(C0 + p0, vload<V>(C0 + p0) + w * cr);
-      vstore(C1 + p0, vload<V>(C1 + p0) + w * cg);
-      vstore(C2 + p0, vload<V>(C2 + p0) + w * cb);
-      if constexpr (kFull) vstore(Dp + p0, vload<V>(Dp + p0) + w * zz);
-      vstore(Tt + p0, con ? Tn : (term ? -Tp : Tp));
-      if constexpr (kFull) vstore(last + p0, (con & SI(idx1)) | (~con & vload<VI>(last + p0)));
-      const int nterm = SV::count(term);
-      if (nterm) {
-        block_live[blk] -= nterm;
-        tile_live -= nterm;
-        if (block_live[blk] == 0) live &= ~(uint64_t(1) << blk);
+      V Tb = vload<V>(Tt + p0), c0 = vload<V>(C0 + p0), c1 = vload<V>(C1 + p0),
+        c2 = vload<V>(C2 + p0), dp{};
+      VI lb{};
+      if constexpr (kFull) dp = vload<V>(Dp + p0), lb = vload<VI>(last + p0);
+      // The list padded to whole groups with the empty slot (opacity 0: no pixel takes it).
+      uint8_t* li = lists[blk];
+      for (int i = cnt; i % kGroup; ++i) li[i] = uint8_t(kGather);
+      for (int i = 0; i < cnt; i += kGroup) {
+        // Each Gaussian's alpha over the block (independent of the pixels' state, so the
+        // group's exponentials overlap), then the group's compositing in list order.
+        V pw[kGroup], ex[kGroup], al[kGroup];
+        VI in[kGroup];
+        T mx[kGroup], my[kGroup], ha[kGroup], hb[kGroup], hc[kGroup];
+        for (int k = 0; k < kGroup; ++k) {
+          const int j = li[i + k];
+          mx[k] = gx[j], my[k] = gy[j], ha[k] = gha[j], hb[k] = gb[j], hc[k] = ghc[j];
+        }
+        block_power_group<BW, BH, kGroup>(mx, my, ha, hb, hc, br, q, col_off, row_off, pw);
+        SV::template exp_group<kGroup>(pw, ex);
+        for (int k = 0; k < kGroup; ++k) {
+          const V og = go[li[i + k]] * ex[k];
+          al[k] = og < T(0.99) ? og : V{} + T(0.99);
+          in[k] = (pw[k] <= T(0)) & (al[k] >= T(1.0f / 255.0f));
+        }
+        for (int k = 0; k < kGroup; ++k) {
+          const int j = li[i + k];
+          const V Tp = Tb;
+          const VI ok = in[k] & (Tp > T(0));
+          const V Tn = Tp * (T(1) - al[k]);
+          const VI term = ok & (Tn < T(1e-4));
+          const VI con = ok & ~term;
+          const V w = con ? al[k] * Tp : V{};
+          c0 = c0 + w * gr[j];
+          c1 = c1 + w * gg[j];
+          c2 = c2 + w * gbl[j];
+          if constexpr (kFull) dp = dp + w * gz[j];
+          Tb = con ? Tn : (term ? -Tp : Tp);
+          if constexpr (kFull) lb = (con & SI(gidx[j])) | (~con & lb);
+        }
+        // A finished pixel takes nothing more, so checking once a group changes nothing.
+        if (SV::all_negative(Tb)) {
+          live &= ~(uint64_t(1) << blk);
+          break;
+        }
       }
+      vstore(Tt + p0, Tb), vstore(C0 + p0, c0), vstore(C1 + p0, c1), vstore(C2 + p0, c2);
+      if constexpr (kFull) vstore(Dp + p0, dp), vstore(last + p0, lb);
     }
   }
   store_tile<T, SI, block_index<BW, BH>>(out, ox, oy, bg, Tt, C0, C1, C2, Dp, last, kFull);
