@@ -105,10 +105,17 @@ template <int BW, int BH, class T, class Res, class Img>
     // the batch's first): a Gaussian whose box holds none of them is skipped whole.
     uint64_t active = 0;
     for (int q = 0; q < kBlocks; ++q) active |= uint64_t(block_max[q] > lo) << q;
+    // The records of the batch after this one, and the accumulators of this one (9 floats at
+    // a random place of a per-thread array the size of the Gaussians' count): fetched ahead,
+    // the batch's arithmetic then runs without waiting for memory.
+    for (int j = std::max(0, lo - kBatch); j < lo; ++j)
+      __builtin_prefetch(&fwd.packed[size_t(kRec) * fwd.point_list[start + j]]);
     for (int j = lo; j < hi; ++j) {
       const int k = j - lo;
       const uint32_t rank = fwd.point_list[start + j];
       bid[k] = fwd.scratch_ids[rank];
+      __builtin_prefetch(acc + size_t(kNG) * bid[k], 1);
+      __builtin_prefetch(acc + size_t(kNG) * bid[k] + kNG - 1, 1);
       const T* rec = &fwd.packed[size_t(kRec) * rank];
       bmx[k] = rec[0] - T(ox);
       bmy[k] = rec[1] - T(oy);
@@ -125,46 +132,65 @@ template <int BW, int BH, class T, class Res, class Img>
       const T cr = br[k], cg = bgc[k], cb = bbl[k];
       V s_mx{}, s_my{}, s_a{}, s_b{}, s_c{}, s_o{}, s_r{}, s_g{}, s_bl{};
       VI any{};  // lanes where this Gaussian contributed to some pixel of the tile
-      // The box's blocks some pixel's last contributor reaches, visited by their bits.
+      // The box's blocks some pixel's last contributor reaches, in the order of their bits.
       uint64_t todo = active & box_blocks<BW, BH>(bx0[k], bx1[k], by0[k], by1[k]);
       if (!todo) continue;
-      const T ha = T(0.5) * a, hc = T(0.5) * c, my = bmy[k];
+      int blks[kBlocks];
+      int nb = 0;
       for (; todo; todo &= todo - 1) {
         const int blk = __builtin_ctzll(todo);
-        if (block_max[blk] <= j) continue;
-        const int rb = blk / kBPR, q = blk % kBPR;
-        const int p0 = blk * N;
-        V dx, dy;  // the forward's expression, so the skip decisions agree bit for bit
-        const V pw = block_power<BW, BH>(mx, my, ha, b, hc, rb, q, col_off, row_off, dx, dy);
-        const V Gv = SV::exp(pw);
-        const V og = o * Gv;
-        const V al = og < T(0.99) ? og : V{} + T(0.99);
-        const VI ok = (SI(j) < vload<VI>(last + p0)) & (pw <= T(0)) & (al >= T(1.0f / 255.0f));
-        any |= ok;
-        const V om = T(1) - al;
-        const V Tc = vload<V>(Tt + p0);
-        const V Tj = Tc / om;
-        V r0 = vload<V>(R0 + p0), r1 = vload<V>(R1 + p0), r2 = vload<V>(R2 + p0);
-        const V d0 = vload<V>(D0 + p0), d1 = vload<V>(D1 + p0), d2 = vload<V>(D2 + p0);
-        const V dLdal = Tj * ((cr - r0) * d0 + (cg - r1) * d1 + (cb - r2) * d2) +
-                        vload<V>(DA + p0) * vload<V>(Tf + p0) / om;
-        const V w = ok ? al * Tj : V{};
-        s_r += w * d0;
-        s_g += w * d1;
-        s_bl += w * d2;
-        vstore(R0 + p0, ok ? cr * al + om * r0 : r0);
-        vstore(R1 + p0, ok ? cg * al + om * r1 : r1);
-        vstore(R2 + p0, ok ? cb * al + om * r2 : r2);
-        vstore(Tt + p0, ok ? Tj : Tc);
-        const V dLdog = (ok & (og <= T(0.99))) ? dLdal : V{};
-        s_o += Gv * dLdog;
-        const V dLdpw = og * dLdog;
-        s_mx -= dLdpw * (a * dx + b * dy);
-        s_my -= dLdpw * (c * dy + b * dx);
-        s_a -= T(0.5) * dx * dx * dLdpw;
-        s_c -= T(0.5) * dy * dy * dLdpw;
-        s_b -= dx * dy * dLdpw;
+        blks[nb] = blk;
+        nb += block_max[blk] > j;
       }
+      const T ha = T(0.5) * a, hc = T(0.5) * c, my = bmy[k];
+      // K blocks at a time: their powers and exponentials step by step for all K (the chains
+      // side by side), then each block's pixels, then its terms added in block order (the
+      // same sums, operation for operation, as one block at a time).
+      const auto blocks = [&]<int K>(const int* bl) {
+        V pw[K], dx[K], dy[K], Gv[K];
+        for (int g = 0; g < K; ++g)  // the forward's expression: the same skip decisions
+          pw[g] = block_power<BW, BH>(mx, my, ha, b, hc, bl[g] / kBPR, bl[g] % kBPR, col_off,
+                                      row_off, dx[g], dy[g]);
+        SV::template exp_group<K>(pw, Gv);
+        V t_r[K], t_g[K], t_bl[K], t_o[K], t_mx[K], t_my[K], t_a[K], t_c[K], t_b[K];
+        for (int g = 0; g < K; ++g) {
+          const int p0 = bl[g] * N;
+          const V og = o * Gv[g];
+          const V al = og < T(0.99) ? og : V{} + T(0.99);
+          const VI ok = (SI(j) < vload<VI>(last + p0)) & (pw[g] <= T(0)) & (al >= T(1.0f / 255.0f));
+          any |= ok;
+          const V om = T(1) - al;
+          const V Tc = vload<V>(Tt + p0);
+          const V Tj = Tc / om;
+          V r0 = vload<V>(R0 + p0), r1 = vload<V>(R1 + p0), r2 = vload<V>(R2 + p0);
+          const V d0 = vload<V>(D0 + p0), d1 = vload<V>(D1 + p0), d2 = vload<V>(D2 + p0);
+          const V dLdal = Tj * ((cr - r0) * d0 + (cg - r1) * d1 + (cb - r2) * d2) +
+                          vload<V>(DA + p0) * vload<V>(Tf + p0) / om;
+          const V w = ok ? al * Tj : V{};
+          t_r[g] = w * d0;
+          t_g[g] = w * d1;
+          t_bl[g] = w * d2;
+          vstore(R0 + p0, ok ? cr * al + om * r0 : r0);
+          vstore(R1 + p0, ok ? cg * al + om * r1 : r1);
+          vstore(R2 + p0, ok ? cb * al + om * r2 : r2);
+          vstore(Tt + p0, ok ? Tj : Tc);
+          const V dLdog = (ok & (og <= T(0.99))) ? dLdal : V{};
+          t_o[g] = Gv[g] * dLdog;
+          const V dLdpw = og * dLdog;
+          t_mx[g] = dLdpw * (a * dx[g] + b * dy[g]);
+          t_my[g] = dLdpw * (c * dy[g] + b * dx[g]);
+          t_a[g] = T(0.5) * dx[g] * dx[g] * dLdpw;
+          t_c[g] = T(0.5) * dy[g] * dy[g] * dLdpw;
+          t_b[g] = dx[g] * dy[g] * dLdpw;
+        }
+        for (int g = 0; g < K; ++g) {
+          s_r += t_r[g], s_g += t_g[g], s_bl += t_bl[g], s_o += t_o[g];
+          s_mx -= t_mx[g], s_my -= t_my[g], s_a -= t_a[g], s_c -= t_c[g], s_b -= t_b[g];
+        }
+      };
+      int i = 0;
+      for (; i + 2 <= nb; i += 2) blocks.template operator()<2>(blks + i);
+      if (i < nb) blocks.template operator()<1>(blks + i);
       // Nothing to add where no pixel took this Gaussian (its sums are exact zeros).
       if (SV::count(any) == 0) continue;
       const V sums[kNG] = {s_mx, s_my, s_a, s_b, s_c, s_o, s_r, s_g, s_bl};
