@@ -153,14 +153,32 @@ template <int CW>
   V basis[16];
   sh::basis<V>(deg, ddx, ddy, ddz, basis);
   V rgb[3];
-  for (int ch = 0; ch < 3; ++ch) {
-    V c = L::splat(0.5f);
-    for (int k = 0; k < K; ++k) {
-      V coef;
-      for (int l = 0; l < CW; ++l) coef[l] = g.sh[((i0 + size_t(l < n ? l : 0)) * K + k) * 3 + ch];
-      c += basis[k] * coef;
+  if ((3 * K) % 4 == 0) {
+    // Each lane's 3K coefficients are contiguous: 4 at a time into lanes by 4 x 4 transposes
+    // (coefficient f = 3k + ch of every lane in coef[f]); the same sums in the same order.
+    V coef[48];
+    for (int f = 0; f < 3 * K; f += 4) {
+      V4 rows[CW];
+      for (int l = 0; l < CW; ++l)
+        rows[l] = L::load4(&g.sh[(i0 + size_t(l < n ? l : 0)) * K * 3 + size_t(f)]);
+      L::transpose4(rows, coef + f);
     }
-    rgb[ch] = c;
+    for (int ch = 0; ch < 3; ++ch) {
+      V c = L::splat(0.5f);
+      for (int k = 0; k < K; ++k) c += basis[k] * coef[3 * k + ch];
+      rgb[ch] = c;
+    }
+  } else {
+    for (int ch = 0; ch < 3; ++ch) {
+      V c = L::splat(0.5f);
+      for (int k = 0; k < K; ++k) {
+        V coef;
+        for (int l = 0; l < CW; ++l)
+          coef[l] = g.sh[((i0 + size_t(l < n ? l : 0)) * K + k) * 3 + ch];
+        c += basis[k] * coef;
+      }
+      rgb[ch] = c;
+    }
   }
   // The render records, 16 floats a Gaussian as four pieces of 4 (written for culled lanes too:
   // only visible Gaussians' records are read).
@@ -211,6 +229,7 @@ template <int CW>
                                                   size_t i0, int n, RasterGradsT<float>& gr) {
   using L = Lanes<CW>;
   using V = typename L::V;
+  using V4 = typename L::V4;
   const int deg = g.sh_degree, K = g.coeffs();
   const size_t N = g.size(), stride = size_t(kNG) * N;
   // Screen-space gradients summed over the threads' buffers (in thread order, as the scalar
@@ -260,25 +279,58 @@ template <int CW>
   const V gc0 = keep[0] * gs[6], gc1 = keep[1] * gs[7], gc2 = keep[2] * gs[8];
   V b[16];
   sh::basis<V>(deg, ddx, ddy, ddz, b);
-  for (int l = 0; l < n; ++l) {
-    float* d = &gr.sh[(i0 + size_t(l)) * K * 3];
-    if (fwd.radii[i0 + size_t(l)] == 0) {
-      std::fill(d, d + 3 * K, 0.0f);
-      continue;
-    }
+  // With 3K a multiple of 4, each lane's 3K gradients and coefficients move between lanes and
+  // rows by 4 x 4 transposes (as in the projection); the same products and sums.
+  const bool rows4 = (3 * K) % 4 == 0;
+  if (rows4) {
+    V t[48];
     for (int k = 0; k < K; ++k)
-      d[3 * k] = b[k][l] * gc0[l], d[3 * k + 1] = b[k][l] * gc1[l], d[3 * k + 2] = b[k][l] * gc2[l];
+      t[3 * k] = b[k] * gc0, t[3 * k + 1] = b[k] * gc1, t[3 * k + 2] = b[k] * gc2;
+    for (int f = 0; f < 3 * K; f += 4) {
+      V4 rows[CW];
+      L::untranspose4(t + f, rows);
+      for (int l = 0; l < n; ++l)
+        std::memcpy(&gr.sh[(i0 + size_t(l)) * K * 3 + size_t(f)], &rows[l], sizeof(V4));
+    }
+    for (int l = 0; l < n; ++l)
+      if (fwd.radii[i0 + size_t(l)] == 0) {
+        float* d = &gr.sh[(i0 + size_t(l)) * K * 3];
+        std::fill(d, d + 3 * K, 0.0f);
+      }
+  } else {
+    for (int l = 0; l < n; ++l) {
+      float* d = &gr.sh[(i0 + size_t(l)) * K * 3];
+      if (fwd.radii[i0 + size_t(l)] == 0) {
+        std::fill(d, d + 3 * K, 0.0f);
+        continue;
+      }
+      for (int k = 0; k < K; ++k)
+        d[3 * k] = b[k][l] * gc0[l], d[3 * k + 1] = b[k][l] * gc1[l],
+              d[3 * k + 2] = b[k][l] * gc2[l];
+    }
   }
   V gmx = V{}, gmy = V{}, gmz = V{};
   if (deg > 0) {
     V bx[16], by[16], bz[16];
     sh::basis_grad<V>(deg, ddx, ddy, ddz, bx, by, bz);
     V gdx = V{}, gdy = V{}, gdz = V{};
+    V coef[48];
+    if (rows4)
+      for (int f = 0; f < 3 * K; f += 4) {
+        V4 rows[CW];
+        for (int l = 0; l < CW; ++l)
+          rows[l] = L::load4(&g.sh[(i0 + size_t(l < n ? l : 0)) * K * 3 + size_t(f)]);
+        L::transpose4(rows, coef + f);
+      }
     for (int k = 1; k < K; ++k) {
       V c0, c1, c2;
-      for (int l = 0; l < CW; ++l) {
-        const float* c = &g.sh[((i0 + size_t(l < n ? l : 0)) * K + k) * 3];
-        c0[l] = c[0], c1[l] = c[1], c2[l] = c[2];
+      if (rows4) {
+        c0 = coef[3 * k], c1 = coef[3 * k + 1], c2 = coef[3 * k + 2];
+      } else {
+        for (int l = 0; l < CW; ++l) {
+          const float* c = &g.sh[((i0 + size_t(l < n ? l : 0)) * K + k) * 3];
+          c0[l] = c[0], c1[l] = c[1], c2[l] = c[2];
+        }
       }
       const V w = c0 * gc0 + c1 * gc1 + c2 * gc2;
       gdx += w * bx[k], gdy += w * by[k], gdz += w * bz[k];

@@ -189,8 +189,20 @@ template <int BW, int BH, class T, class Res, class Img>
         }
       };
       int i = 0;
-      for (; i + 2 <= nb; i += 2) blocks.template operator()<2>(blks + i);
-      if (i < nb) blocks.template operator()<1>(blks + i);
+      for (; i + 4 <= nb; i += 4) blocks.template operator()<4>(blks + i);
+      switch (nb - i) {
+        case 3:
+          blocks.template operator()<3>(blks + i);
+          break;
+        case 2:
+          blocks.template operator()<2>(blks + i);
+          break;
+        case 1:
+          blocks.template operator()<1>(blks + i);
+          break;
+        default:
+          break;
+      }
       // Nothing to add where no pixel took this Gaussian (its sums are exact zeros).
       if (SV::count(any) == 0) continue;
       const V sums[kNG] = {s_mx, s_my, s_a, s_b, s_c, s_o, s_r, s_g, s_bl};

@@ -15,18 +15,21 @@ namespace {
 using raster::Isa;
 
 // A scene with every case the chain rule branches on: Gaussians behind the camera and outside
-// the image (no gradient), partly outside (the Jacobian clamp), a clamped colour channel, SH 3,
-// and a count that is no multiple of the block widths.
-Gaussians chain_rule_scene() {
+// the image (no gradient), partly outside (the Jacobian clamp), a clamped colour channel, SH of
+// the given degree (3K coefficients a multiple of 4 or not: rows moved by transposes or lane by
+// lane), and a count that is no multiple of the block widths.
+Gaussians chain_rule_scene(int sh_degree) {
   test::SceneOptions o;
   o.n = 45;
-  o.sh_degree = 3;
+  o.sh_degree = sh_degree;
   o.spread = 1.1;
   o.scale_min = 0.02, o.scale_max = 0.25;
   Gaussians g = test::random_scene(o, 17);
   g.means[3 * 4 + 2] = 2.6f;  // behind the camera (it sits at z = 2 looking at the origin)
-  for (int c = 0; c < 3; ++c) g.sh[size_t(7) * 16 * 3 + c] = -2.f;  // every channel clamped
-  g.sh[size_t(9) * 16 * 3 + 1] = -2.f;                              // one channel clamped
+  g.means[3 * 11] = 40.f, g.means[3 * 13 + 1] = -40.f;  // far outside the image
+  const size_t K = size_t(g.coeffs());
+  for (int c = 0; c < 3; ++c) g.sh[7 * K * 3 + size_t(c)] = -2.f;  // every channel clamped
+  g.sh[9 * K * 3 + 1] = -2.f;                                      // one channel clamped
   return g;
 }
 
@@ -37,8 +40,11 @@ double rel_rms(const std::vector<float>& a, const std::vector<float>& b) {
   return std::sqrt(num / std::max(den, 1e-30));
 }
 
-TEST(RasterChainRule, BlocksAgreeWithThePerGaussianLoop) {
-  const Gaussians g = chain_rule_scene();
+class RasterChainRule : public ::testing::TestWithParam<int> {};
+
+TEST_P(RasterChainRule, BlocksAgreeWithThePerGaussianLoop) {
+  const Gaussians g = chain_rule_scene(GetParam());
+  const size_t K = size_t(g.coeffs());
   const Camera cam = test::test_camera(64, 48);
   RasterResult fwd;
   rasterize_forward(g, cam, {}, fwd);
@@ -75,7 +81,7 @@ TEST(RasterChainRule, BlocksAgreeWithThePerGaussianLoop) {
       EXPECT_EQ(b.means[3 * i], 0.f) << name << " Gaussian " << i;
       EXPECT_EQ(b.quats[4 * i + 1], 0.f) << name << " Gaussian " << i;
       EXPECT_EQ(b.opacity_logits[i], 0.f) << name << " Gaussian " << i;
-      EXPECT_EQ(b.sh[i * 48 + 5], 0.f) << name << " Gaussian " << i;
+      EXPECT_EQ(b.sh[i * K * 3 + 2], 0.f) << name << " Gaussian " << i;
     }
   }
   // And the widths agree with each other to rounding in the same order of operations.
@@ -88,6 +94,8 @@ TEST(RasterChainRule, BlocksAgreeWithThePerGaussianLoop) {
     EXPECT_EQ(b4.sh, b8.sh);
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(ShDegrees, RasterChainRule, ::testing::Values(0, 1, 2, 3));
 
 }  // namespace
 }  // namespace ks
