@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/aligned.hpp"
 #include "core/camera.hpp"
 #include "core/image.hpp"
 #include "gaussians/gaussians.hpp"
@@ -67,8 +68,9 @@ struct RasterResultT {
   // render record (mean2d, conic, opacity, SH colour, depth, pixel rect x0 x1 y0 y1 inclusive);
   // records: the same by id as the projection writes them (16 N, valid where radii > 0). After
   // an image_only forward, packed holds the records by id (nothing is copied) and point_list
-  // holds ids; records is scratch.
-  std::vector<T> packed, records;
+  // holds ids; records is scratch. A record is 64 bytes: the arrays start on a cache line, so
+  // each record lies in one line.
+  LineAlignedVector<T> packed, records;
   std::vector<uint32_t> point_list;   // depth ranks (ids if image_only), tile-major then depth
   std::vector<uint32_t> tile_ranges;  // 2 * tiles: [start, end) into point_list
   std::vector<T> final_T;             // per pixel
