@@ -105,21 +105,13 @@ struct Simd<float, CW> {
   // exp for x <= 0 that vectorises (no libm call): Cody-Waite reduction + degree-6 polynomial,
   // relative error ~2e-7.
   [[gnu::always_inline]] static V exp(V x) {
-    const V lo = V{} - 87.0f;
-    x = x < lo ? lo : x;
-    const V t = x * 1.4426950408889634f;
-    const V k = (t + 12582912.0f) - 12582912.0f;
-    const V r = (x - k * 0.693145751953125f) - k * 1.428606765330187e-06f;
-    const V r2 = r * r, r4 = r2 * r2;
-    const V p01 = r + 1.0f, p23 = r * (1.0f / 6.0f) + 0.5f,
-            p45 = r * (1.0f / 120.0f) + 1.0f / 24.0f;
-    const V p = (p01 + r2 * p23) + r4 * (p45 + r2 * (1.0f / 720.0f));
-    const I bits = (__builtin_convertvector(k, I) + 127) << 23;
-    return p * (V)bits;
+    V out;
+    exp_group<1>(&x, &out);
+    return out;
   }
-  // exp of K vectors, the same operations as exp, each step for all K before the next: the
-  // K dependency chains sit side by side in the instruction stream, so the core overlaps
-  // them (one exp is a chain of about 15 dependent operations).
+  // exp of K vectors, each step for all K before the next: the K dependency chains sit side
+  // by side in the instruction stream, so the core overlaps them (one exp is a chain of about
+  // 15 dependent operations). exp above is the case K = 1.
   template <int K>
   [[gnu::always_inline]] static void exp_group(const V* x_in, V* out) {
     V x[K], k[K], r[K], r2[K], r4[K], p[K];
@@ -227,28 +219,18 @@ constexpr int block_index(int c, int r) {
 constexpr int row_index(int c, int r) {
   return block_index<kTS, 1>(c, r);
 }
-// A Gaussian at (mx, my) (tile-local pixels) over block (br, q) of the BW x BH layout: each
-// lane's offset from its pixel centre (dx, dy) and the exponent -1/2 d^T Q d, with ha = a / 2,
-// hc = c / 2 of the conic (a, b, c). The one expression both tile kernels use, so that their
-// decisions (alpha >= 1/255, the clamp) agree bit for bit.
-template <int BW, int BH, class V, class T>
-[[gnu::always_inline]] inline V block_power(T mx, T my, T ha, T b, T hc, int br, int q,
-                                            const V& col_off, const V& row_off, V& dx, V& dy) {
-  dx = (mx - T(q * BW) - T(0.5)) - col_off;
-  dy = my - ((T(br * BH) + row_off) + T(0.5));
-  return -(ha * dx * dx + hc * dy * dy) - (b * dy) * dx;
-}
-
-// block_power for K Gaussians at once (centres mx, my and half conics ha, b, hc given per
-// Gaussian), each step for all K before the next so that their chains overlap; the same
-// operations per lane as block_power.
+// K Gaussians at (mx, my) (tile-local pixels) over blocks (br, q) of the BW x BH layout (all
+// given per Gaussian): each lane's offset from its pixel centre (dx, dy) and the exponent
+// -1/2 d^T Q d, with ha = a / 2, hc = c / 2 of the conic (a, b, c). The one expression both
+// tile kernels use, so that their decisions (alpha >= 1/255, the clamp) agree bit for bit. Each
+// step is done for all K before the next, so that the K dependency chains overlap.
 template <int BW, int BH, int K, class V, class T>
 [[gnu::always_inline]] inline void block_power_group(const T* mx, const T* my, const T* ha,
-                                                     const T* b, const T* hc, int br, int q,
-                                                     const V& col_off, const V& row_off, V* pw) {
-  V dx[K], dy[K];
-  for (int g = 0; g < K; ++g) dx[g] = (mx[g] - T(q * BW) - T(0.5)) - col_off;
-  for (int g = 0; g < K; ++g) dy[g] = my[g] - ((T(br * BH) + row_off) + T(0.5));
+                                                     const T* b, const T* hc, const int* br,
+                                                     const int* q, const V& col_off,
+                                                     const V& row_off, V* dx, V* dy, V* pw) {
+  for (int g = 0; g < K; ++g) dx[g] = (mx[g] - T(q[g] * BW) - T(0.5)) - col_off;
+  for (int g = 0; g < K; ++g) dy[g] = my[g] - ((T(br[g] * BH) + row_off) + T(0.5));
   for (int g = 0; g < K; ++g) pw[g] = ha[g] * dx[g] * dx[g];
   for (int g = 0; g < K; ++g) pw[g] = pw[g] + hc[g] * dy[g] * dy[g];
   for (int g = 0; g < K; ++g) pw[g] = -pw[g] - (b[g] * dy[g]) * dx[g];

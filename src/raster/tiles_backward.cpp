@@ -148,9 +148,13 @@ template <int BW, int BH, class T, class Res, class Img>
       // same sums, operation for operation, as one block at a time).
       const auto blocks = [&]<int K>(const int* bl) {
         V pw[K], dx[K], dy[K], Gv[K];
-        for (int g = 0; g < K; ++g)  // the forward's expression: the same skip decisions
-          pw[g] = block_power<BW, BH>(mx, my, ha, b, hc, bl[g] / kBPR, bl[g] % kBPR, col_off,
-                                      row_off, dx[g], dy[g]);
+        T gmx[K], gmy[K], gha[K], gb[K], ghc[K];
+        int brs[K], qs[K];
+        for (int g = 0; g < K; ++g)
+          gmx[g] = mx, gmy[g] = my, gha[g] = ha, gb[g] = b, ghc[g] = hc, brs[g] = bl[g] / kBPR,
+          qs[g] = bl[g] % kBPR;
+        // The forward's expression: the same skip decisions.
+        block_power_group<BW, BH, K>(gmx, gmy, gha, gb, ghc, brs, qs, col_off, row_off, dx, dy, pw);
         SV::template exp_group<K>(pw, Gv);
         V t_r[K], t_g[K], t_bl[K], t_o[K], t_mx[K], t_my[K], t_a[K], t_c[K], t_b[K];
         for (int g = 0; g < K; ++g) {

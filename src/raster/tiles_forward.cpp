@@ -160,11 +160,15 @@ template <int BW, int BH, bool kFull, class T, class Res>
         V pw[kGroup], ex[kGroup], al[kGroup];
         VI in[kGroup];
         T mx[kGroup], my[kGroup], ha[kGroup], hb[kGroup], hc[kGroup];
+        int brs[kGroup], qs[kGroup];
         for (int k = 0; k < kGroup; ++k) {
           const int j = li[i + k];
           mx[k] = gx[j], my[k] = gy[j], ha[k] = gha[j], hb[k] = gb[j], hc[k] = ghc[j];
+          brs[k] = br, qs[k] = q;
         }
-        block_power_group<BW, BH, kGroup>(mx, my, ha, hb, hc, br, q, col_off, row_off, pw);
+        V dx[kGroup], dy[kGroup];
+        block_power_group<BW, BH, kGroup>(mx, my, ha, hb, hc, brs, qs, col_off, row_off, dx, dy,
+                                          pw);
         SV::template exp_group<kGroup>(pw, ex);
         for (int k = 0; k < kGroup; ++k) {
           const V og = go[li[i + k]] * ex[k];
