@@ -32,6 +32,21 @@ struct Lanes : ks::Lanes<CW> {
   }
 };
 
+// The SH coefficients of the block's Gaussians i0 .. i0 + n (padding lanes repeat the first) into
+// lanes, coef[f] = coefficient f = 3k + channel of every lane, 4 at a time by 4 x 4 transposes
+// (each Gaussian's 3K coefficients are contiguous); 3K must be a multiple of 4.
+template <int CW>
+[[gnu::always_inline]] inline void sh_to_lanes(const Gaussians& g, size_t i0, int n, int K,
+                                               typename Lanes<CW>::V* coef) {
+  using L = Lanes<CW>;
+  for (int f = 0; f < 3 * K; f += 4) {
+    typename L::V4 rows[CW];
+    for (int l = 0; l < CW; ++l)
+      rows[l] = L::load4(&g.sh[(i0 + size_t(l < n ? l : 0)) * K * 3 + size_t(f)]);
+    L::transpose4(rows, coef + f);
+  }
+}
+
 // The unit view directions from the camera centre to the block's means (+Z where they coincide,
 // has = 0 there) and their distances: sh::view_direction on lanes.
 template <class L, class V = typename L::V, class I = typename L::I>
@@ -154,15 +169,9 @@ template <int CW>
   sh::basis<V>(deg, ddx, ddy, ddz, basis);
   V rgb[3];
   if ((3 * K) % 4 == 0) {
-    // Each lane's 3K coefficients are contiguous: 4 at a time into lanes by 4 x 4 transposes
-    // (coefficient f = 3k + ch of every lane in coef[f]); the same sums in the same order.
+    // The coefficients into lanes (sh_to_lanes); the same sums in the same order.
     V coef[48];
-    for (int f = 0; f < 3 * K; f += 4) {
-      V4 rows[CW];
-      for (int l = 0; l < CW; ++l)
-        rows[l] = L::load4(&g.sh[(i0 + size_t(l < n ? l : 0)) * K * 3 + size_t(f)]);
-      L::transpose4(rows, coef + f);
-    }
+    sh_to_lanes<CW>(g, i0, n, K, coef);
     for (int ch = 0; ch < 3; ++ch) {
       V c = L::splat(0.5f);
       for (int k = 0; k < K; ++k) c += basis[k] * coef[3 * k + ch];
@@ -315,13 +324,7 @@ template <int CW>
     sh::basis_grad<V>(deg, ddx, ddy, ddz, bx, by, bz);
     V gdx = V{}, gdy = V{}, gdz = V{};
     V coef[48];
-    if (rows4)
-      for (int f = 0; f < 3 * K; f += 4) {
-        V4 rows[CW];
-        for (int l = 0; l < CW; ++l)
-          rows[l] = L::load4(&g.sh[(i0 + size_t(l < n ? l : 0)) * K * 3 + size_t(f)]);
-        L::transpose4(rows, coef + f);
-      }
+    if (rows4) sh_to_lanes<CW>(g, i0, n, K, coef);
     for (int k = 1; k < K; ++k) {
       V c0, c1, c2;
       if (rows4) {
