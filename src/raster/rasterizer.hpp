@@ -64,14 +64,12 @@ struct RasterResultT {
   std::vector<T> cov3d;             // 6N (xx, xy, xz, yy, yz, zz)
   std::vector<uint8_t> sh_clamped;  // 3N
   std::vector<T> opacities;         // N activated opacity
-  // Visible Gaussians in depth order: scratch_ids[rank] = Gaussian id, packed[16 rank ..] =
-  // render record (mean2d, conic, opacity, SH colour, depth, pixel rect x0 x1 y0 y1 inclusive);
-  // records: the same by id as the projection writes them (16 N, valid where radii > 0). After
-  // an image_only forward, packed holds the records by id (nothing is copied) and point_list
-  // holds ids; records is scratch. A record is 64 bytes: the arrays start on a cache line, so
-  // each record lies in one line.
+  // packed[16 i ..] = the render record of Gaussian i (mean2d, conic, opacity, SH colour, depth,
+  // pixel rect x0 x1 y0 y1 inclusive), valid where radii > 0, as the projection wrote it into
+  // `records` (the two swap; records is scratch after the forward). A record is 64 bytes: the
+  // arrays start on a cache line, so each record lies in one line.
   LineAlignedVector<T> packed, records;
-  std::vector<uint32_t> point_list;   // depth ranks (ids if image_only), tile-major then depth
+  std::vector<uint32_t> point_list;   // Gaussian ids, tile-major then depth order
   std::vector<uint32_t> tile_ranges;  // 2 * tiles: [start, end) into point_list
   std::vector<T> final_T;             // per pixel
   std::vector<uint32_t> n_contrib;    // per pixel: index one past the last contributor (in tile)

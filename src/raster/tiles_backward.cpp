@@ -112,11 +112,10 @@ template <int BW, int BH, class T, class Res, class Img>
       __builtin_prefetch(&fwd.packed[size_t(kRec) * fwd.point_list[start + j]]);
     for (int j = lo; j < hi; ++j) {
       const int k = j - lo;
-      const uint32_t rank = fwd.point_list[start + j];
-      bid[k] = fwd.scratch_ids[rank];
+      bid[k] = fwd.point_list[start + j];
       __builtin_prefetch(acc + size_t(kNG) * bid[k], 1);
       __builtin_prefetch(acc + size_t(kNG) * bid[k] + kNG - 1, 1);
-      const T* rec = &fwd.packed[size_t(kRec) * rank];
+      const T* rec = &fwd.packed[size_t(kRec) * bid[k]];
       bmx[k] = rec[0] - T(ox);
       bmy[k] = rec[1] - T(oy);
       ba[k] = rec[2], bb[k] = rec[3], bc[k] = rec[4], bo[k] = rec[5];

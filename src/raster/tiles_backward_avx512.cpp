@@ -47,8 +47,8 @@ __attribute__((target("avx512f,avx512dq,avx512bw,avx512vl"))) void backward_tile
   const __m512 iota = _mm512_setr_ps(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   const __m512 one = _mm512_set1_ps(1.f), zero = _mm512_setzero_ps();
   for (int j = jmax - 1; j >= 0; --j) {
-    const uint32_t rank = fwd.point_list[start + j];
-    const float* rec = &fwd.packed[size_t(kRec) * rank];
+    const uint32_t id = fwd.point_list[start + j];
+    const float* rec = &fwd.packed[size_t(kRec) * id];
     const float mx = rec[0] - float(ox), my = rec[1] - float(oy);
     const float a = rec[2], b = rec[3], c = rec[4], o = rec[5];
     const int x0 = std::max(int(rec[10]) - ox, 0), x1 = std::min(int(rec[11]) - ox, kTS - 1);
@@ -121,7 +121,7 @@ __attribute__((target("avx512f,avx512dq,avx512bw,avx512vl"))) void backward_tile
       s_b = _mm512_sub_ps(s_b, _mm512_mul_ps(_mm512_mul_ps(dx, dy), dLdpw));
     }
     if (!any) continue;
-    float* ga = acc + size_t(kNG) * fwd.scratch_ids[rank];
+    float* ga = acc + size_t(kNG) * id;
     ga[0] += _mm512_reduce_add_ps(s_mx), ga[1] += _mm512_reduce_add_ps(s_my);
     ga[2] += _mm512_reduce_add_ps(s_a), ga[3] += _mm512_reduce_add_ps(s_b);
     ga[4] += _mm512_reduce_add_ps(s_c), ga[5] += _mm512_reduce_add_ps(s_o);
