@@ -7,6 +7,7 @@
 #include <immintrin.h>
 #endif
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -264,6 +265,37 @@ template <int BW, int BH>
                            ~((uint64_t(1) << (br0 * kBPR)) - 1);
   const uint64_t cols_in = (uint64_t(2) << q1) - (uint64_t(1) << q0);
   return rows_in * cols_in;  // each row's first-column bit spread over the columns
+}
+
+// The forward's record for the backward of where each (tile, Gaussian) entry contributed
+// (RasterResultT::entry_cells): a tile's 32 cells of 4 x 2 pixels, cell (r / 2) * 4 + c / 4 of
+// pixel (c, r), as bits, whatever block shape a kernel uses. block_cells: the cells a block of
+// BW x BH pixels (number br * kTS / BW + q) overlaps; cells_blocks: the blocks that overlap a
+// set of cells. For the AVX2 kernels' 4 x 2 blocks, cells are blocks.
+constexpr int kCellW = 4, kCellH = 2, kCellsPerRow = kTS / kCellW;
+static_assert(kTilePixels / (kCellW * kCellH) == 32, "one bit a cell in 32 bits");
+template <int BW, int BH>
+constexpr uint32_t block_cells(int blk) {
+  constexpr int kBPR = kTS / BW;
+  const int c0 = (blk % kBPR) * BW, r0 = (blk / kBPR) * BH;
+  uint32_t m = 0;
+  for (int r = r0; r < r0 + BH; r += std::min(BH, kCellH))
+    for (int c = c0; c < c0 + BW; c += std::min(BW, kCellW))
+      m |= uint32_t(1) << ((r / kCellH) * kCellsPerRow + c / kCellW);
+  return m;
+}
+template <int BW, int BH>
+[[gnu::always_inline]] inline uint64_t cells_blocks(uint32_t cells) {
+  if constexpr (BW == kCellW && BH == kCellH) {
+    return cells;
+  } else {
+    constexpr int kBlocks = kTilePixels / (BW * BH);
+    static_assert(kBlocks <= 64, "one bit a block");
+    uint64_t m = 0;
+    for (int blk = 0; blk < kBlocks; ++blk)
+      m |= uint64_t((block_cells<BW, BH>(blk) & cells) != 0) << blk;
+    return m;
+  }
 }
 
 // Each lane's column (l % BW) and row (l / BW) within its block.

@@ -94,6 +94,7 @@ void forward(const GaussiansT<T>& g, const GaussianSource* source, const Camera&
   out.records.resize(size_t(raster::kRec) * N);
   out.final_T.resize(s.image_only ? 0 : size_t(W) * H);
   out.n_contrib.resize(s.image_only ? 0 : size_t(W) * H);
+  if (s.image_only) out.entry_cells.clear();  // (sized by the compositing otherwise)
   const int tiles_x = (W + kTS - 1) / kTS, tiles_y = (H + kTS - 1) / kTS;
   out.tile_ranges.resize(2 * size_t(tiles_x) * tiles_y);
   const Isa isa = std::is_same_v<T, float> ? choose_isa(s) : Isa::kBaseline;
@@ -139,7 +140,8 @@ void rasterize_backward(const GaussiansT<T>& g, const Camera& camera, const Rast
   const size_t N = g.size();
   if (fwd.image_only)
     throw Error("rasterize_backward: the forward result is image_only (no backward state)");
-  if (fwd.radii.size() != N || fwd.color.width != W || fwd.color.height != H)
+  if (fwd.radii.size() != N || fwd.color.width != W || fwd.color.height != H ||
+      fwd.entry_cells.size() != fwd.point_list.size())
     throw Error("rasterize_backward: forward result does not match the Gaussians / camera");
   if (dLdc.width != W || dLdc.height != H || dLdc.channels != 3)
     throw Error("rasterize_backward: dL/dcolor must be W x H x 3");

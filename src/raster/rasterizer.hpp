@@ -71,8 +71,11 @@ struct RasterResultT {
   LineAlignedVector<T> packed, records;
   std::vector<uint32_t> point_list;   // Gaussian ids, tile-major then depth order
   std::vector<uint32_t> tile_ranges;  // 2 * tiles: [start, end) into point_list
-  std::vector<T> final_T;             // per pixel
-  std::vector<uint32_t> n_contrib;    // per pixel: index one past the last contributor (in tile)
+  // Per point_list entry (empty after an image_only forward): the tile's cells of 4 x 2 pixels
+  // where the Gaussian contributed to a pixel, as bits; the backward visits only those.
+  std::vector<uint32_t> entry_cells;
+  std::vector<T> final_T;           // per pixel
+  std::vector<uint32_t> n_contrib;  // per pixel: index one past the last contributor (in tile)
   // Scratch reused across frames (sorting, binning).
   std::vector<uint32_t> scratch_keys, scratch_ids, scratch_keys2, scratch_ids2, scratch_counts;
 };

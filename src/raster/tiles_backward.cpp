@@ -74,9 +74,7 @@ template <int BW, int BH, class T, class Res, class Img>
   using VI = typename SV::I;
   using SI = typename SV::S;
   alignas(64) SI last[kTilePixels];
-  int block_max[kBlocks];  // max over the block's pixels of last contributor + 1
-  int jmax = 0;
-  for (int q = 0; q < kBlocks; ++q) block_max[q] = 0;
+  int jmax = 0;  // one past the tile's last contributor
   for (int r = 0; r < kTS; ++r)
     for (int c = 0; c < kTS; ++c) {
       const int p = block_index<BW, BH>(c, r);
@@ -91,27 +89,30 @@ template <int BW, int BH, class T, class Res, class Img>
         Tt[p] = Tf[p] = 1, last[p] = 0, D0[p] = D1[p] = D2[p] = DA[p] = 0;
       }
       R0[p] = bg[0], R1[p] = bg[1], R2[p] = bg[2];
-      block_max[p / N] = std::max(block_max[p / N], int(last[p]));
       jmax = std::max(jmax, int(last[p]));
     }
   const V col_off = block_columns<V, BW, BH>(), row_off = block_rows<V, BW, BH>();
   alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
       br[kBatch], bgc[kBatch], bbl[kBatch];
-  int by0[kBatch], by1[kBatch], bx0[kBatch], bx1[kBatch];
+  uint64_t bblocks[kBatch];
+  int bj[kBatch];
   uint32_t bid[kBatch];
+  const uint32_t* cells = fwd.entry_cells.data() + start;
   for (int hi = jmax; hi > 0; hi -= kBatch) {
     const int lo = std::max(0, hi - kBatch);
-    // The blocks some Gaussian of this batch can reach (a pixel's last contributor is beyond
-    // the batch's first): a Gaussian whose box holds none of them is skipped whole.
-    uint64_t active = 0;
-    for (int q = 0; q < kBlocks; ++q) active |= uint64_t(block_max[q] > lo) << q;
+    // The batch's entries with a cell where the forward's Gaussian contributed (the others
+    // add nothing), each with its blocks: those cells' blocks within its pixel box (the box
+    // keeps the backward exact for any record of cells that covers the contributions).
     // The records of the batch after this one, and the accumulators of this one (9 floats at
     // a random place of a per-thread array the size of the Gaussians' count): fetched ahead,
     // the batch's arithmetic then runs without waiting for memory.
     for (int j = std::max(0, lo - kBatch); j < lo; ++j)
-      __builtin_prefetch(&fwd.packed[size_t(kRec) * fwd.point_list[start + j]]);
+      if (cells[j]) __builtin_prefetch(&fwd.packed[size_t(kRec) * fwd.point_list[start + j]]);
+    int nk = 0;
     for (int j = lo; j < hi; ++j) {
-      const int k = j - lo;
+      if (!cells[j]) continue;
+      const int k = nk++;
+      bj[k] = j;
       bid[k] = fwd.point_list[start + j];
       __builtin_prefetch(acc + size_t(kNG) * bid[k], 1);
       __builtin_prefetch(acc + size_t(kNG) * bid[k] + kNG - 1, 1);
@@ -120,27 +121,24 @@ template <int BW, int BH, class T, class Res, class Img>
       bmy[k] = rec[1] - T(oy);
       ba[k] = rec[2], bb[k] = rec[3], bc[k] = rec[4], bo[k] = rec[5];
       br[k] = rec[6], bgc[k] = rec[7], bbl[k] = rec[8];
-      bx0[k] = std::max(int(rec[10]) - ox, 0) / BW;
-      bx1[k] = std::min(int(rec[11]) - ox, kTS - 1) / BW;
-      by0[k] = std::max(int(rec[12]) - oy, 0) / BH;
-      by1[k] = std::min(int(rec[13]) - oy, kTS - 1) / BH;
+      const int x0 = std::max(int(rec[10]) - ox, 0) / BW;
+      const int x1 = std::min(int(rec[11]) - ox, kTS - 1) / BW;
+      const int y0 = std::max(int(rec[12]) - oy, 0) / BH;
+      const int y1 = std::min(int(rec[13]) - oy, kTS - 1) / BH;
+      bblocks[k] = cells_blocks<BW, BH>(cells[j]) & box_blocks<BW, BH>(x0, x1, y0, y1);
     }
-    for (int j = hi - 1; j >= lo; --j) {
-      const int k = j - lo;
+    for (int k = nk - 1; k >= 0; --k) {
+      const int j = bj[k];
       const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
       const T cr = br[k], cg = bgc[k], cb = bbl[k];
       V s_mx{}, s_my{}, s_a{}, s_b{}, s_c{}, s_o{}, s_r{}, s_g{}, s_bl{};
       VI any{};  // lanes where this Gaussian contributed to some pixel of the tile
-      // The box's blocks some pixel's last contributor reaches, in the order of their bits.
-      uint64_t todo = active & box_blocks<BW, BH>(bx0[k], bx1[k], by0[k], by1[k]);
+      // The entry's blocks in the order of their bits.
+      uint64_t todo = bblocks[k];
       if (!todo) continue;
       int blks[kBlocks];
       int nb = 0;
-      for (; todo; todo &= todo - 1) {
-        const int blk = __builtin_ctzll(todo);
-        blks[nb] = blk;
-        nb += block_max[blk] > j;
-      }
+      for (; todo; todo &= todo - 1) blks[nb++] = __builtin_ctzll(todo);
       const T ha = T(0.5) * a, hc = T(0.5) * c, my = bmy[k];
       // K blocks at a time: their powers and exponentials step by step for all K (the chains
       // side by side), then each block's pixels, then its terms added in block order (the

@@ -49,7 +49,8 @@ uint32_t sign_bits8(const VI&) {
 // a block still to be done are copied into the batch (structure of arrays) and each such block
 // gets the entry's slot in its own list. Then each block runs through its list with its pixels'
 // state in registers, in list order (so each pixel sees the same Gaussians in the same order as
-// entry by entry), and stops as soon as all its pixels are finished.
+// entry by entry), and stops as soon as all its pixels are finished. kFull also records, per
+// entry, the cells where the Gaussian contributed to a pixel (entry_cells).
 template <int BW, int BH, bool kFull, class T, class Res>
 [[gnu::always_inline]] inline void composite_tile(Res& out, int tile, int tiles_x, int W, int H,
                                                   const T* bg) {
@@ -78,6 +79,8 @@ template <int BW, int BH, bool kFull, class T, class Res>
   alignas(64) T gx[kSlots], gy[kSlots], gha[kSlots], gb[kSlots], ghc[kSlots], go[kSlots],
       gr[kSlots], gg[kSlots], gbl[kSlots], gz[kSlots];
   alignas(64) SI gidx[kSlots];
+  alignas(64) uint32_t gcells[kFull ? kSlots : 1];  // kFull: the cells each slot contributed to
+  uint32_t* const cells_out = kFull ? out.entry_cells.data() : nullptr;
   alignas(64) uint8_t lists[kBlocks][kGather + kGroup];
   gx[kGather] = gy[kGather] = gha[kGather] = gb[kGather] = ghc[kGather] = go[kGather] = 0;
   gr[kGather] = gg[kGather] = gbl[kGather] = gz[kGather] = 0;
@@ -88,10 +91,18 @@ template <int BW, int BH, bool kFull, class T, class Res>
   constexpr bool kByMasks = kHaveSignBits8 && kBlocks == 32 && N == 8 && std::is_same_v<T, float>;
   alignas(64) uint32_t slot_blocks[kByMasks ? kGather + 8 : 1];
   const V col_off = block_columns<V, BW, BH>(), row_off = block_rows<V, BW, BH>();
+  // Whether any lane of a mask is set (the sign bits where the AVX2 kernel has them).
+  [[maybe_unused]] const auto any_lane = [](const VI& m) {
+    if constexpr (kHaveSignBits8 && N == 8 && std::is_same_v<T, float>)
+      return sign_bits8(m) != 0;
+    else
+      return SV::count(m) != 0;
+  };
   const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
   for (uint32_t e = start; e < std::min(end, start + kPrefetch); ++e)
     __builtin_prefetch(&out.packed[size_t(kRec) * out.point_list[e]]);
-  for (uint32_t e0 = start; e0 < end && live; e0 += kGather) {
+  uint32_t e0 = start;
+  for (; e0 < end && live; e0 += kGather) {
     const uint32_t e1 = std::min(end, e0 + uint32_t(kGather));
     if constexpr (!kByMasks)
       for (uint64_t m = live; m; m &= m - 1) nlist[__builtin_ctzll(m)] = 0;
@@ -107,11 +118,15 @@ template <int BW, int BH, bool kFull, class T, class Res>
       const int br0 = std::max(int(rec[12]) - oy, 0) / BH;
       const int br1 = std::min(int(rec[13]) - oy, kTS - 1) / BH;
       uint64_t todo = live & box_blocks<BW, BH>(q0, q1, br0, br1);
-      if (!todo) continue;
+      if (!todo) {
+        if constexpr (kFull) cells_out[e] = 0;
+        continue;
+      }
       gx[n] = rec[0] - T(ox), gy[n] = rec[1] - T(oy);
       gha[n] = T(0.5) * rec[2], gb[n] = rec[3], ghc[n] = T(0.5) * rec[4], go[n] = rec[5];
       gr[n] = rec[6], gg[n] = rec[7], gbl[n] = rec[8], gz[n] = rec[9];
       gidx[n] = SI(e - start + 1);
+      if constexpr (kFull) gcells[n] = 0;
       if constexpr (kByMasks) {
         slot_blocks[n] = uint32_t(todo);
         covered |= todo;
@@ -147,6 +162,7 @@ template <int BW, int BH, bool kFull, class T, class Res>
       if (!cnt) continue;
       const int br = blk / kBPR, q = blk % kBPR;
       const int p0 = blk * N;
+      [[maybe_unused]] const uint32_t cells = block_cells<BW, BH>(blk);
       V Tb = vload<V>(Tt + p0), c0 = vload<V>(C0 + p0), c1 = vload<V>(C1 + p0),
         c2 = vload<V>(C2 + p0), dp{};
       VI lb{};
@@ -188,7 +204,10 @@ template <int BW, int BH, bool kFull, class T, class Res>
           c2 = c2 + w * gbl[j];
           if constexpr (kFull) dp = dp + w * gz[j];
           Tb = con ? Tn : (term ? -Tp : Tp);
-          if constexpr (kFull) lb = (con & SI(gidx[j])) | (~con & lb);
+          if constexpr (kFull) {
+            lb = (con & SI(gidx[j])) | (~con & lb);
+            gcells[j] |= any_lane(con) ? cells : 0u;
+          }
         }
         // A finished pixel takes nothing more, so checking once a group changes nothing.
         if (SV::all_negative(Tb)) {
@@ -199,7 +218,11 @@ template <int BW, int BH, bool kFull, class T, class Res>
       vstore(Tt + p0, Tb), vstore(C0 + p0, c0), vstore(C1 + p0, c1), vstore(C2 + p0, c2);
       if constexpr (kFull) vstore(Dp + p0, dp), vstore(last + p0, lb);
     }
+    if constexpr (kFull)
+      for (int k = 0; k < n; ++k) cells_out[start + uint32_t(gidx[k]) - 1] = gcells[k];
   }
+  // Entries after the tile finished take no pixel.
+  if constexpr (kFull) std::fill(cells_out + std::min(e0, end), cells_out + end, 0u);
   store_tile<T, SI, block_index<BW, BH>>(out, ox, oy, bg, Tt, C0, C1, C2, Dp, last, kFull);
 }
 
@@ -239,6 +262,7 @@ void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* b
   const int W = out.color.width, H = out.color.height;
   const int ntiles = tiles_x * tiles_y;
   const bool full = !out.image_only;
+  if (full) out.entry_cells.resize(out.point_list.size());
 #pragma omp parallel for schedule(dynamic, 2)
   for (int tile = 0; tile < ntiles; ++tile) {
     if (out.tile_ranges[2 * tile] == out.tile_ranges[2 * tile + 1]) {
@@ -250,6 +274,11 @@ void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* b
 #if defined(__x86_64__)
       if (isa == Isa::kAvx512) {
         composite_tile_avx512(out, tile, tiles_x, W, H, bg, full);
+        // It does not record where entries contributed: every cell may (the backward then
+        // visits each entry's whole box, as before the cells).
+        if (full)
+          std::fill(out.entry_cells.begin() + out.tile_ranges[2 * tile],
+                    out.entry_cells.begin() + out.tile_ranges[2 * tile + 1], ~0u);
         continue;
       }
 #endif

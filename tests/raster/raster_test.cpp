@@ -246,6 +246,62 @@ void expect_kernel_agrees(RasterKernel kernel, unsigned seed, double scale_min, 
   close(gr[0].sh, gr[1].sh, "sh");
 }
 
+// The forward's record of where each entry contributed (entry_cells, 4 x 2-pixel cells) holds
+// every contribution: the backward through it gives the gradients it gives when every cell is
+// marked (then it visits each entry's whole box). And it marks only cells where a pixel's last
+// contributor lies at or beyond the entry, so it skips work: fewer cells than the boxes hold.
+TEST(Raster, EntryCellsHoldEveryContribution) {
+  SceneOptions o;
+  o.n = 300;
+  o.sh_degree = 1;
+  o.opacity_max = 0.999;
+  o.scale_min = 0.01, o.scale_max = 0.1;
+  const Gaussians g = random_scene(o, 41);
+  const Camera cam = test_camera(83, 61, 0.45, 0.55);
+  Image dc(cam.width, cam.height, 3), da(cam.width, cam.height, 1);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> U(-1.f, 1.f);
+  for (float& v : dc.data) v = U(rng);
+  for (float& v : da.data) v = U(rng);
+  const int tiles_x = (cam.width + kTileSize - 1) / kTileSize;
+  for (const RasterKernel k : {RasterKernel::kBaseline, RasterKernel::kAuto}) {
+    RasterSettings s;
+    s.kernel = k;
+    RasterResult r;
+    rasterize_forward(g, cam, s, r);
+    ASSERT_EQ(r.entry_cells.size(), r.point_list.size());
+    size_t marked = 0, empty = 0;
+    for (size_t t = 0; t < r.tile_ranges.size() / 2; ++t) {
+      const int ox = int(t % tiles_x) * kTileSize, oy = int(t / tiles_x) * kTileSize;
+      for (uint32_t e = r.tile_ranges[2 * t]; e < r.tile_ranges[2 * t + 1]; ++e) {
+        const uint32_t j = e - r.tile_ranges[2 * t], cells = r.entry_cells[e];
+        empty += cells == 0;
+        for (int cell = 0; cell < 32; ++cell) {
+          if (!(cells >> cell & 1)) continue;
+          ++marked;
+          bool reached = false;  // a pixel of the cell whose last contributor is j or later
+          for (int y = oy + cell / 4 * 2; y < oy + cell / 4 * 2 + 2 && y < cam.height; ++y)
+            for (int x = ox + cell % 4 * 4; x < ox + cell % 4 * 4 + 4 && x < cam.width; ++x)
+              reached |= r.n_contrib[size_t(y) * cam.width + x] > j;
+          ASSERT_TRUE(reached) << "tile " << t << " entry " << j << " cell " << cell;
+        }
+      }
+    }
+    EXPECT_GT(marked, 0u);
+    EXPECT_GT(empty, 0u);  // entries that took no pixel at all
+    RasterGrads exact, all;
+    rasterize_backward(g, cam, s, r, dc, da, exact);
+    std::fill(r.entry_cells.begin(), r.entry_cells.end(), ~0u);
+    rasterize_backward(g, cam, s, r, dc, da, all);
+    EXPECT_EQ(exact.means, all.means);
+    EXPECT_EQ(exact.log_scales, all.log_scales);
+    EXPECT_EQ(exact.quats, all.quats);
+    EXPECT_EQ(exact.opacity_logits, all.opacity_logits);
+    EXPECT_EQ(exact.sh, all.sh);
+    EXPECT_EQ(exact.means2d, all.means2d);
+  }
+}
+
 TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
   SceneOptions o;
   o.n = 300;
@@ -265,6 +321,7 @@ TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
     EXPECT_TRUE(img.depth.data.empty());
     EXPECT_TRUE(img.final_T.empty());
     EXPECT_TRUE(img.n_contrib.empty());
+    EXPECT_TRUE(img.entry_cells.empty());
     EXPECT_EQ(img.radii, full.radii);
     EXPECT_EQ(img.depths, full.depths);
     EXPECT_TRUE(img.means2d.empty() && img.conics.empty() && img.cov3d.empty() &&
@@ -277,6 +334,7 @@ TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
     rasterize_forward(g, cam, s, img);
     EXPECT_EQ(img.depth.data, full.depth.data);
     EXPECT_EQ(img.n_contrib, full.n_contrib);
+    EXPECT_EQ(img.entry_cells, full.entry_cells);
     EXPECT_EQ(img.means2d, full.means2d);
     EXPECT_EQ(img.conics, full.conics);
     EXPECT_EQ(img.cov3d, full.cov3d);
