@@ -21,11 +21,13 @@ namespace ks {
 
 constexpr int kTileSize = 16;
 
-// The CPU tile kernels: 4-pixel SSE2 chunks (the portable baseline), 8-pixel AVX2 chunks, or
-// AVX-512 with a whole 16-pixel tile row per vector. kAuto takes the widest the CPU has
-// (KS_RASTER_NO_AVX512 / KS_RASTER_NO_AVX2 set in the environment skip one). All give the same
-// images; gradients agree up to the order of their float sums. The double instantiation has one
-// kernel (this setting is ignored there).
+// The CPU tile kernels: 4-pixel SSE2 chunks (the portable baseline), blocks of 4 x 2 pixels
+// with AVX2, or AVX-512 with a whole 16-pixel tile row per vector. kAuto takes AVX2 where the CPU
+// has it, else the baseline: on an AVX-512 Xeon the AVX2 kernels ran faster than the AVX-512 ones
+// (docs/rasterizer.md, "AVX-512 measured"); KS_RASTER_AVX512=1 makes kAuto take AVX-512 where
+// the CPU has it, KS_RASTER_NO_AVX2=1 the baseline. All give the same images; gradients agree up
+// to the order of their float sums. The double instantiation has one kernel (this setting is
+// ignored there).
 enum class RasterKernel { kAuto, kBaseline, kAvx2, kAvx512 };
 
 struct RasterSettings {

@@ -1,8 +1,9 @@
 // The rasterizer's backward tile pass with AVX-512 (chosen at run time where the CPU has it):
 // the baseline kernel's reverse compositing with a whole 16-pixel tile row per vector and the
-// lane masks in mask registers; rows where the Gaussian touched no pixel are skipped, and the
-// per-Gaussian sums are reduced across the lanes once per tile. Compiled without
-// floating-point contraction, like the forward kernel it reverses.
+// lane masks in mask registers; an entry that took no pixel in the forward and rows whose cells
+// (entry_cells) hold none of its contributions are skipped, and the per-Gaussian sums are
+// reduced across the lanes once per tile. Compiled without floating-point contraction, like
+// the forward kernel it reverses.
 // GCC 12 reports its own AVX-512 intrinsics' undefined pass-through operands as maybe
 // uninitialised (a known false positive).
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
@@ -47,6 +48,9 @@ __attribute__((target("avx512f,avx512dq,avx512bw,avx512vl"))) void backward_tile
   const __m512 iota = _mm512_setr_ps(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   const __m512 one = _mm512_set1_ps(1.f), zero = _mm512_setzero_ps();
   for (int j = jmax - 1; j >= 0; --j) {
+    // The cells where the forward's Gaussian took a pixel (none: it adds nothing here).
+    const uint32_t cells = fwd.entry_cells[start + j];
+    if (!cells) continue;
     const uint32_t id = fwd.point_list[start + j];
     const float* rec = &fwd.packed[size_t(kRec) * id];
     const float mx = rec[0] - float(ox), my = rec[1] - float(oy);
@@ -64,7 +68,7 @@ __attribute__((target("avx512f,avx512dq,avx512bw,avx512vl"))) void backward_tile
            s_g = zero, s_bl = zero;
     bool any = false;
     for (int r = y0; r <= y1; ++r) {
-      if (row_max[r] <= j) continue;
+      if (row_max[r] <= j || !(cells >> ((r / kCellH) * kCellsPerRow) & 0xfu)) continue;
       const float dyf = my - (float(r) + 0.5f);
       const float cdy = 0.5f * c * dyf * dyf, bdy = b * dyf;
       const __m512 pw = _mm512_sub_ps(

@@ -274,11 +274,6 @@ void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* b
 #if defined(__x86_64__)
       if (isa == Isa::kAvx512) {
         composite_tile_avx512(out, tile, tiles_x, W, H, bg, full);
-        // It does not record where entries contributed: every cell may (the backward then
-        // visits each entry's whole box, as before the cells).
-        if (full)
-          std::fill(out.entry_cells.begin() + out.tile_ranges[2 * tile],
-                    out.entry_cells.begin() + out.tile_ranges[2 * tile + 1], ~0u);
         continue;
       }
 #endif

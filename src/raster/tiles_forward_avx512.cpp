@@ -44,7 +44,8 @@ __attribute__((target("avx512f,avx512dq,avx512bw,avx512vl"))) void composite_til
   }
   const __m512 iota = _mm512_setr_ps(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
-  for (uint32_t e = start; e < end && tile_live > 0; ++e) {
+  uint32_t e = start;
+  for (; e < end && tile_live > 0; ++e) {
     const float* rec = &out.packed[size_t(kRec) * out.point_list[e]];
     const float mx = rec[0] - float(ox), my = rec[1] - float(oy);
     const float a = rec[2], b = rec[3], c = rec[4], o = rec[5];
@@ -59,6 +60,7 @@ __attribute__((target("avx512f,avx512dq,avx512bw,avx512vl"))) void composite_til
     const __m512 vo = _mm512_set1_ps(o), vr = _mm512_set1_ps(rec[6]), vg = _mm512_set1_ps(rec[7]),
                  vb = _mm512_set1_ps(rec[8]), vz = _mm512_set1_ps(rec[9]);
     const __m512i vidx = _mm512_set1_epi32(idx1);
+    uint32_t cells = 0;  // full: the cells of 4 x 2 pixels where it contributed (entry_cells)
     for (int r = y0; r <= y1; ++r) {
       const __mmask16 live = __mmask16(row_live[r] & cols);
       if (!live) continue;
@@ -89,6 +91,10 @@ __attribute__((target("avx512f,avx512dq,avx512bw,avx512vl"))) void composite_til
         float* pd = Dp + r * kTS;
         _mm512_store_ps(pd, _mm512_add_ps(_mm512_load_ps(pd), _mm512_mul_ps(w, vz)));
         _mm512_mask_store_epi32(last + r * kTS, con, vidx);
+        const uint32_t m = con;  // the row's four cells: any lane of each group of 4
+        const uint32_t quads = uint32_t((m & 0xfu) != 0) | uint32_t((m & 0xf0u) != 0) << 1 |
+                               uint32_t((m & 0xf00u) != 0) << 2 | uint32_t((m & 0xf000u) != 0) << 3;
+        cells |= quads << ((r / kCellH) * kCellsPerRow);
       }
       __m512 Tnew = _mm512_mask_mov_ps(Tp, con, Tn);
       if (term) {
@@ -98,7 +104,10 @@ __attribute__((target("avx512f,avx512dq,avx512bw,avx512vl"))) void composite_til
       }
       _mm512_store_ps(pt, Tnew);
     }
+    if (full) out.entry_cells[e] = cells;
   }
+  // Entries after the tile finished take no pixel.
+  if (full) std::fill(out.entry_cells.begin() + e, out.entry_cells.begin() + end, 0u);
   store_tile(out, ox, oy, bg, Tt, C0, C1, C2, Dp, last, full);
 }
 

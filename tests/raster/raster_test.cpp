@@ -264,7 +264,12 @@ TEST(Raster, EntryCellsHoldEveryContribution) {
   for (float& v : dc.data) v = U(rng);
   for (float& v : da.data) v = U(rng);
   const int tiles_x = (cam.width + kTileSize - 1) / kTileSize;
-  for (const RasterKernel k : {RasterKernel::kBaseline, RasterKernel::kAuto}) {
+  std::vector<RasterKernel> kernels = {RasterKernel::kBaseline};
+  if (raster_avx2_available()) kernels.push_back(RasterKernel::kAvx2);
+  if (raster_avx512_available()) kernels.push_back(RasterKernel::kAvx512);
+  std::vector<std::vector<uint32_t>> recorded;
+  for (const RasterKernel k : kernels) {
+    SCOPED_TRACE(int(k));
     RasterSettings s;
     s.kernel = k;
     RasterResult r;
@@ -289,6 +294,7 @@ TEST(Raster, EntryCellsHoldEveryContribution) {
     }
     EXPECT_GT(marked, 0u);
     EXPECT_GT(empty, 0u);  // entries that took no pixel at all
+    recorded.push_back(r.entry_cells);
     // One thread: the tiles' sums then come in one order (with two, in the order the threads
     // happen to take the tiles).
     RasterGrads exact, all;
@@ -304,6 +310,10 @@ TEST(Raster, EntryCellsHoldEveryContribution) {
     EXPECT_EQ(exact.opacity_logits, all.opacity_logits);
     EXPECT_EQ(exact.sh, all.sh);
     EXPECT_EQ(exact.means2d, all.means2d);
+  }
+  // The AVX2 kernel's blocks are the cells; the AVX-512 kernel's rows give the same cells.
+  if (kernels.size() == 3) {
+    EXPECT_EQ(recorded[1], recorded[2]);
   }
 }
 
