@@ -120,7 +120,7 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
   // The tile lists hold Gaussian ids, and the records stay where the projection wrote them (by
   // id; `records` becomes `packed`, the two buffers swap below): the tile loops gather records
   // through the lists either way, and copying them into depth order first cost a third of this
-  // phase without making the tile loops faster.
+  // phase, more than it saved the tile loops (docs/rasterizer.md, step 3).
   // Binning, each thread over its contiguous slice of the depth order: its per-tile counts from
   // the tile rectangles the projection wrote (gathered once into depth order), then a prefix sum
   // over (tile, thread) gives every thread its write offsets, and each scatters its slice. Slices
