@@ -22,7 +22,7 @@ struct Opts {
   size_t gaussians = 110000;
   int width = 512, height = 768, frames = 10, threads = 0;
   bool backward = false;
-  std::string ply, camera, save_ply, save_camera;
+  std::string ply, camera, save_ply, save_camera, kernel = "auto";
 };
 
 double median(std::vector<double> v) {
@@ -44,6 +44,11 @@ void run(const Opts& o) {
   if (!o.save_ply.empty()) ks::write_ply(o.save_ply, g);
   if (!o.save_camera.empty()) cam.save(o.save_camera);
   ks::RasterSettings s;
+  s.kernel = o.kernel == "baseline" ? ks::RasterKernel::kBaseline
+             : o.kernel == "avx2"   ? ks::RasterKernel::kAvx2
+             : o.kernel == "avx512" ? ks::RasterKernel::kAvx512
+                                    : ks::RasterKernel::kAuto;
+  const char* kernel = ks::raster_kernel_name(s);  // throws for one the CPU lacks
   ks::RasterResult r;
   ks::RasterGrads gr;
   ks::Image dc(cam.width, cam.height, 3), da(cam.width, cam.height, 1);
@@ -93,9 +98,11 @@ void run(const Opts& o) {
   for (int rad : r.radii) visible += rad > 0;
   double cov = 0;
   for (float a : r.alpha.data) cov += a;
-  std::printf("gaussians %zu (visible %zu), %dx%d, threads %d, tile entries %zu, coverage %.1f%%\n",
-              g.size(), visible, cam.width, cam.height, omp_get_max_threads(), r.point_list.size(),
-              100.0 * cov / double(r.alpha.data.size()));
+  std::printf(
+      "gaussians %zu (visible %zu), %dx%d, threads %d, tile entries %zu, coverage %.1f%%, kernel "
+      "%s\n",
+      g.size(), visible, cam.width, cam.height, omp_get_max_threads(), r.point_list.size(),
+      100.0 * cov / double(r.alpha.data.size()), kernel);
   const double mf = median(fwd), mi = median(img);
   std::printf("forward: median %.2f ms, min %.2f ms over %d frames (CPU time %.1f ms/frame)\n", mf,
               *std::min_element(fwd.begin(), fwd.end()), o.frames, cpu_fwd);
@@ -124,6 +131,11 @@ ks::cli::CommandGroup group(900, [](CLI::App& app) {
   sub->add_flag("--backward", o->backward, "also time forward + backward");
   sub->add_option("--frames", o->frames, "timed frames (median reported)")->capture_default_str();
   sub->add_option("--threads", o->threads, "OpenMP threads (0 = default)");
+  sub->add_option("--kernel", o->kernel,
+                  "tile kernel: auto (AVX2 where the CPU has it, else baseline), baseline, avx2 "
+                  "or avx512 (an error where the CPU lacks it)")
+      ->check(CLI::IsMember({"auto", "baseline", "avx2", "avx512"}))
+      ->capture_default_str();
   sub->add_option("--ply", o->ply,
                   "time this 3DGS .ply instead of the generated cloud (--gaussians is ignored)");
   sub->add_option(

@@ -53,6 +53,20 @@ Isa choose_isa(const RasterSettings& s) {
   }
 }
 
+}  // namespace raster
+
+const char* raster_kernel_name(const RasterSettings& s) {
+  switch (raster::choose_isa(s)) {
+    case raster::Isa::kAvx512:
+      return "avx512";
+    case raster::Isa::kAvx2:
+      return "avx2";
+    default:
+      return "baseline";
+  }
+}
+
+namespace raster {
 namespace {
 
 template <class Img>

@@ -45,6 +45,9 @@ struct RasterSettings {
 // Whether this CPU can run RasterKernel::kAvx2 / kAvx512.
 bool raster_avx2_available();
 bool raster_avx512_available();
+// The tile kernel `s` runs on this CPU: "baseline", "avx2" or "avx512" (kAuto resolved; throws
+// as the rasterizer does for a kernel the CPU lacks).
+const char* raster_kernel_name(const RasterSettings& s);
 
 // Everything the forward pass produces; also the state the backward pass reuses.
 // Reuse one RasterResult across frames: buffers are resized, not reallocated.

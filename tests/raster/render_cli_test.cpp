@@ -98,6 +98,25 @@ TEST(RenderCli, BenchRasterPrintsSummary) {
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("FPS"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("forward+backward"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(std::string("kernel ") + raster_kernel_name({})), std::string::npos)
+      << r.out;
+}
+
+// --kernel picks the tile kernel (named in the summary); an unknown one, or one the CPU lacks, is
+// a clear error.
+TEST(RenderCli, BenchRasterKernelOption) {
+  const std::string args = "bench raster --gaussians 500 --width 32 --height 48 --frames 1";
+  const CliRun r = run_cli(args + " --kernel baseline");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("kernel baseline"), std::string::npos) << r.out;
+  const CliRun bad = run_cli(args + " --kernel sse9");
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.err.find("--kernel"), std::string::npos) << bad.err;
+  if (!raster_avx512_available()) {
+    const CliRun none = run_cli(args + " --kernel avx512");
+    EXPECT_EQ(none.status, 1);
+    EXPECT_NE(none.err.find("AVX-512"), std::string::npos) << none.err;
+  }
 }
 
 TEST(RenderCli, BenchRasterTimesGivenScene) {
