@@ -3,9 +3,11 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <random>
+#include <utility>
 
 #include "core/error.hpp"
 #include "raster/raster_scene.hpp"
@@ -250,20 +252,16 @@ void expect_kernel_agrees(RasterKernel kernel, unsigned seed, double scale_min, 
 // every contribution: the backward through it gives the gradients it gives when every cell is
 // marked (then it visits each entry's whole box). And it marks only cells where a pixel's last
 // contributor lies at or beyond the entry, so it skips work: fewer cells than the boxes hold.
-TEST(Raster, EntryCellsHoldEveryContribution) {
-  SceneOptions o;
-  o.n = 300;
-  o.sh_degree = 1;
-  o.opacity_max = 0.999;
-  o.scale_min = 0.01, o.scale_max = 0.1;
-  const Gaussians g = random_scene(o, 41);
-  const Camera cam = test_camera(83, 61, 0.45, 0.55);
+// Returns the most entries a tile has, and how many entries lie beyond their tile's last
+// contributor (the forward stopped before them).
+std::pair<size_t, size_t> expect_cells_hold_contributions(const Gaussians& g, const Camera& cam) {
   Image dc(cam.width, cam.height, 3), da(cam.width, cam.height, 1);
   std::mt19937 rng(9);
   std::uniform_real_distribution<float> U(-1.f, 1.f);
   for (float& v : dc.data) v = U(rng);
   for (float& v : da.data) v = U(rng);
   const int tiles_x = (cam.width + kTileSize - 1) / kTileSize;
+  size_t most = 0, beyond = 0;
   std::vector<RasterKernel> kernels = {RasterKernel::kBaseline};
   if (raster_avx2_available()) kernels.push_back(RasterKernel::kAvx2);
   if (raster_avx512_available()) kernels.push_back(RasterKernel::kAvx512);
@@ -273,14 +271,25 @@ TEST(Raster, EntryCellsHoldEveryContribution) {
     RasterSettings s;
     s.kernel = k;
     RasterResult r;
+    r.entry_cells.assign(1 << 20, ~0u);  // stale cells of a reused result: all overwritten
     rasterize_forward(g, cam, s, r);
-    ASSERT_EQ(r.entry_cells.size(), r.point_list.size());
+    EXPECT_EQ(r.entry_cells.size(), r.point_list.size());
+    if (r.entry_cells.size() != r.point_list.size()) break;
     size_t marked = 0, empty = 0;
     for (size_t t = 0; t < r.tile_ranges.size() / 2; ++t) {
       const int ox = int(t % tiles_x) * kTileSize, oy = int(t / tiles_x) * kTileSize;
+      most = std::max<size_t>(most, r.tile_ranges[2 * t + 1] - r.tile_ranges[2 * t]);
+      uint32_t jmax = 0;  // one past the tile's last contributor
+      for (int y = oy; y < std::min(oy + kTileSize, cam.height); ++y)
+        for (int x = ox; x < std::min(ox + kTileSize, cam.width); ++x)
+          jmax = std::max(jmax, r.n_contrib[size_t(y) * cam.width + x]);
       for (uint32_t e = r.tile_ranges[2 * t]; e < r.tile_ranges[2 * t + 1]; ++e) {
         const uint32_t j = e - r.tile_ranges[2 * t], cells = r.entry_cells[e];
         empty += cells == 0;
+        if (j >= jmax) {
+          ++beyond;
+          EXPECT_EQ(cells, 0u) << "tile " << t << " entry " << j;
+        }
         for (int cell = 0; cell < 32; ++cell) {
           if (!(cells >> cell & 1)) continue;
           ++marked;
@@ -288,7 +297,7 @@ TEST(Raster, EntryCellsHoldEveryContribution) {
           for (int y = oy + cell / 4 * 2; y < oy + cell / 4 * 2 + 2 && y < cam.height; ++y)
             for (int x = ox + cell % 4 * 4; x < ox + cell % 4 * 4 + 4 && x < cam.width; ++x)
               reached |= r.n_contrib[size_t(y) * cam.width + x] > j;
-          ASSERT_TRUE(reached) << "tile " << t << " entry " << j << " cell " << cell;
+          EXPECT_TRUE(reached) << "tile " << t << " entry " << j << " cell " << cell;
         }
       }
     }
@@ -315,6 +324,34 @@ TEST(Raster, EntryCellsHoldEveryContribution) {
   if (kernels.size() == 3) {
     EXPECT_EQ(recorded[1], recorded[2]);
   }
+  return {most, beyond};
+}
+
+TEST(Raster, EntryCellsHoldEveryContribution) {
+  SceneOptions o;
+  o.n = 300;
+  o.sh_degree = 1;
+  o.opacity_max = 0.999;
+  o.scale_min = 0.01, o.scale_max = 0.1;
+  expect_cells_hold_contributions(random_scene(o, 41), test_camera(83, 61, 0.45, 0.55));
+  // Tiles with more entries than the forward gathers at a time (252): pixels that take
+  // Gaussians through several batches, and (opaque) pixels that finish within the first one,
+  // the rest of the list left untouched.
+  SceneOptions deep;
+  deep.n = 4000;
+  deep.scale_min = 0.01, deep.scale_max = 0.04;
+  deep.opacity_min = 0.2, deep.opacity_max = 0.7;
+  EXPECT_GT(expect_cells_hold_contributions(random_scene(deep, 43), test_camera(48, 40)).first,
+            252u);
+  SceneOptions opaque;
+  opaque.n = 3000;
+  opaque.scale_min = 0.05, opaque.scale_max = 0.2;
+  opaque.opacity_min = 0.5, opaque.opacity_max = 0.99;
+  opaque.spread = 1.0;
+  const auto [most, beyond] =
+      expect_cells_hold_contributions(random_scene(opaque, 43), test_camera(48, 40));
+  EXPECT_GT(most, 252u);
+  EXPECT_GT(beyond, 252u);
 }
 
 TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
