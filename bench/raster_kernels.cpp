@@ -10,7 +10,6 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <vector>
 
 #include "core/error.hpp"
@@ -35,15 +34,9 @@ int main(int argc, char** argv) {
   const int frames = argc > 2 ? std::atoi(argv[2]) : 20;
   const int n = argc > 3 ? std::atoi(argv[3]) : 110000;
   ks::RasterSettings s;
-  if (!std::strcmp(name, "auto"))
-    s.kernel = ks::RasterKernel::kAuto;
-  else if (!std::strcmp(name, "baseline"))
-    s.kernel = ks::RasterKernel::kBaseline;
-  else if (!std::strcmp(name, "avx2"))
-    s.kernel = ks::RasterKernel::kAvx2;
-  else if (!std::strcmp(name, "avx512"))
-    s.kernel = ks::RasterKernel::kAvx512;
-  else {
+  try {
+    s.kernel = ks::raster_kernel_from_name(name);
+  } catch (const ks::Error&) {
     std::fprintf(stderr,
                  "usage: raster_kernels [auto|baseline|avx2|avx512] [frames] [gaussians]\n");
     return 2;

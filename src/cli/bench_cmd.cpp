@@ -44,10 +44,7 @@ void run(const Opts& o) {
   if (!o.save_ply.empty()) ks::write_ply(o.save_ply, g);
   if (!o.save_camera.empty()) cam.save(o.save_camera);
   ks::RasterSettings s;
-  s.kernel = o.kernel == "baseline" ? ks::RasterKernel::kBaseline
-             : o.kernel == "avx2"   ? ks::RasterKernel::kAvx2
-             : o.kernel == "avx512" ? ks::RasterKernel::kAvx512
-                                    : ks::RasterKernel::kAuto;
+  s.kernel = ks::raster_kernel_from_name(o.kernel);
   const char* kernel = ks::raster_kernel_name(s);  // throws for one the CPU lacks
   ks::RasterResult r;
   ks::RasterGrads gr;

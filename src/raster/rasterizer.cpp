@@ -55,6 +55,14 @@ Isa choose_isa(const RasterSettings& s) {
 
 }  // namespace raster
 
+RasterKernel raster_kernel_from_name(const std::string& name) {
+  if (name == "auto") return RasterKernel::kAuto;
+  if (name == "baseline") return RasterKernel::kBaseline;
+  if (name == "avx2") return RasterKernel::kAvx2;
+  if (name == "avx512") return RasterKernel::kAvx512;
+  throw Error("rasterizer: no tile kernel named '" + name + "' (auto, baseline, avx2 or avx512)");
+}
+
 const char* raster_kernel_name(const RasterSettings& s) {
   switch (raster::choose_isa(s)) {
     case raster::Isa::kAvx512:

@@ -10,6 +10,7 @@
 // binning.cpp (depth sort, render records, tile lists), tiles_forward.cpp / tiles_backward.cpp
 // (the per-tile compositing and its reverse), rasterizer.cpp (the two passes in order).
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "core/aligned.hpp"
@@ -45,6 +46,8 @@ struct RasterSettings {
 // Whether this CPU can run RasterKernel::kAvx2 / kAvx512.
 bool raster_avx2_available();
 bool raster_avx512_available();
+// A kernel by its name: "auto", "baseline", "avx2" or "avx512" (throws for any other).
+RasterKernel raster_kernel_from_name(const std::string& name);
 // The tile kernel `s` runs on this CPU: "baseline", "avx2" or "avx512" (kAuto resolved; throws
 // as the rasterizer does for a kernel the CPU lacks).
 const char* raster_kernel_name(const RasterSettings& s);

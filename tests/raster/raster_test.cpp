@@ -354,6 +354,18 @@ TEST(Raster, EntryCellsHoldEveryContribution) {
   EXPECT_GT(beyond, 252u);
 }
 
+// Kernels by name (the bench's --kernel) and the name of the one a setting runs.
+TEST(Raster, KernelsByName) {
+  EXPECT_EQ(raster_kernel_from_name("auto"), RasterKernel::kAuto);
+  EXPECT_EQ(raster_kernel_from_name("baseline"), RasterKernel::kBaseline);
+  EXPECT_EQ(raster_kernel_from_name("avx2"), RasterKernel::kAvx2);
+  EXPECT_EQ(raster_kernel_from_name("avx512"), RasterKernel::kAvx512);
+  EXPECT_THROW(raster_kernel_from_name("sse9"), Error);
+  RasterSettings s;
+  s.kernel = RasterKernel::kBaseline;
+  EXPECT_STREQ(raster_kernel_name(s), "baseline");
+}
+
 TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
   SceneOptions o;
   o.n = 300;
