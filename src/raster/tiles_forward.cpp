@@ -236,16 +236,16 @@ __attribute__((target("avx2"), flatten)) void composite_tile_avx2(Res& out, int 
 }
 
 // A tile no Gaussian touches: colour = background, alpha 0 (and depth 0, final transmittance 1,
-// no contributor), as store_tile leaves it after compositing nothing.
+// no contributor), as store_tile leaves it after compositing nothing. bg_row: the background
+// colour of a whole tile row (kTS pixels, 3 values each), copied row by row.
 template <class T>
-void fill_empty_tile(RasterResultT<T>& out, int tile, int tiles_x, int W, int H, const T* bg,
+void fill_empty_tile(RasterResultT<T>& out, int tile, int tiles_x, int W, int H, const T* bg_row,
                      bool full) {
   const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
   const int w = std::min(kTS, W - ox);
   for (int r = 0; r < kTS && oy + r < H; ++r) {
     const size_t pix = size_t(oy + r) * W + ox;
-    T* c = &out.color.data[3 * pix];
-    for (int k = 0; k < w; ++k) c[3 * k] = bg[0], c[3 * k + 1] = bg[1], c[3 * k + 2] = bg[2];
+    std::memcpy(&out.color.data[3 * pix], bg_row, sizeof(T) * 3 * size_t(w));
     std::fill_n(&out.alpha.data[pix], w, T(0));
     if (full) {
       std::fill_n(&out.depth.data[pix], w, T(0));
@@ -263,11 +263,13 @@ void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* b
   const int ntiles = tiles_x * tiles_y;
   const bool full = !out.image_only;
   if (full) out.entry_cells.resize(out.point_list.size());
+  T bg_row[3 * kTS];
+  for (int k = 0; k < 3 * kTS; ++k) bg_row[k] = bg[k % 3];
 #pragma omp parallel for schedule(dynamic, 2)
   for (int tile = 0; tile < ntiles; ++tile) {
     if (out.tile_ranges[2 * tile] == out.tile_ranges[2 * tile + 1]) {
       // No Gaussian: the background, what the kernels would store for it.
-      fill_empty_tile(out, tile, tiles_x, W, H, bg, full);
+      fill_empty_tile(out, tile, tiles_x, W, H, bg_row, full);
       continue;
     }
     if constexpr (std::is_same_v<T, float>) {
