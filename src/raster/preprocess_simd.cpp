@@ -32,6 +32,21 @@ struct Lanes : ks::Lanes<CW> {
   }
 };
 
+// Four floats into an output that the pass writes once and does not read back (the SH
+// gradients, 192 bytes a Gaussian at degree 3): a non-temporal store where the address allows,
+// so that the lines are not first read for ownership (the pass ends with a store fence).
+template <class V4>
+[[gnu::always_inline]] inline void store_once(float* p, const V4& v) {
+  static_assert(sizeof(V4) == 16, "four floats");
+#if defined(__SSE2__)
+  if ((reinterpret_cast<uintptr_t>(p) & 15) == 0) {
+    _mm_stream_ps(p, (__m128)v);
+    return;
+  }
+#endif
+  std::memcpy(p, &v, sizeof v);
+}
+
 // The SH coefficients of the block's Gaussians i0 .. i0 + n (padding lanes repeat the first) into
 // lanes, coef[f] = coefficient f = 3k + channel of every lane, 4 at a time by 4 x 4 transposes
 // (each Gaussian's 3K coefficients are contiguous); 3K must be a multiple of 4.
@@ -298,8 +313,7 @@ template <int CW>
     for (int f = 0; f < 3 * K; f += 4) {
       V4 rows[CW];
       L::untranspose4(t + f, rows);
-      for (int l = 0; l < n; ++l)
-        std::memcpy(&gr.sh[(i0 + size_t(l)) * K * 3 + size_t(f)], &rows[l], sizeof(V4));
+      for (int l = 0; l < n; ++l) store_once(&gr.sh[(i0 + size_t(l)) * K * 3 + size_t(f)], rows[l]);
     }
     for (int l = 0; l < n; ++l)
       if (fwd.radii[i0 + size_t(l)] == 0) {
@@ -509,13 +523,19 @@ void preprocess_backward_simd(const GaussiansT<float>& g, const CameraT<float>& 
   const size_t N = g.size();
   size_param_grads(gr, N, g.coeffs());
   const long chunks = long((N + kChunk - 1) / kChunk);
-#pragma omp parallel for schedule(static)
-  for (long c = 0; c < chunks; ++c) {
-    const size_t b = size_t(c) * kChunk, e = std::min(N, b + kChunk);
-    if (isa == Isa::kBaseline)
-      backward_range_sse2(g, cam, fwd, threads, b, e, gr);
-    else
-      backward_range_avx2(g, cam, fwd, threads, b, e, gr);
+#pragma omp parallel
+  {
+#pragma omp for schedule(static)
+    for (long c = 0; c < chunks; ++c) {
+      const size_t b = size_t(c) * kChunk, e = std::min(N, b + kChunk);
+      if (isa == Isa::kBaseline)
+        backward_range_sse2(g, cam, fwd, threads, b, e, gr);
+      else
+        backward_range_avx2(g, cam, fwd, threads, b, e, gr);
+    }
+#if defined(__SSE2__)
+    _mm_sfence();  // store_once's stores visible before the threads join
+#endif
   }
 }
 
