@@ -30,6 +30,18 @@ Gaussians chain_rule_scene(int sh_degree) {
   const size_t K = size_t(g.coeffs());
   for (int c = 0; c < 3; ++c) g.sh[7 * K * 3 + size_t(c)] = -2.f;  // every channel clamped
   g.sh[9 * K * 3 + 1] = -2.f;                                      // one channel clamped
+  // Gaussian 20 in view but behind three large opaque ones on its line of sight from the
+  // camera (test_camera, at (0.1, 0.05, 2)): visible, yet it takes no pixel.
+  const float at[4][3] = {
+      {0.f, 0.f, -0.5f}, {0.04f, 0.02f, 0.5f}, {0.044f, 0.022f, 0.6f}, {0.048f, 0.024f, 0.7f}};
+  for (int k = 0; k < 4; ++k) {
+    const size_t i = size_t(20 + k);
+    for (int c = 0; c < 3; ++c) {
+      g.means[3 * i + size_t(c)] = at[k][c];
+      g.log_scales[3 * i + size_t(c)] = std::log(k == 0 ? 0.03f : 0.5f);
+    }
+    if (k > 0) g.opacity_logits[i] = 8.f;
+  }
   return g;
 }
 
@@ -59,6 +71,12 @@ TEST_P(RasterChainRule, BlocksAgreeWithThePerGaussianLoop) {
   rasterize_backward(g, cam, {}, fwd, wc, wa, gr);  // fills the screen-space accumulators
   const raster::CameraT<float> c(cam);
   const int threads = omp_get_max_threads();
+  // Gaussian 20 is visible and took no pixel: every screen-space sum is zero, so the blocks
+  // skip its chain rule and must still write its zero gradients.
+  ASSERT_GT(fwd.radii[20], 0);
+  for (int th = 0; th < threads; ++th)
+    for (int q = 0; q < 9; ++q)
+      ASSERT_EQ(gr.scratch[size_t(th) * 9 * g.size() + 9 * 20 + size_t(q)], 0.f);
   RasterGrads ref = gr;
   raster::preprocess_backward(g, c, fwd, threads, ref);
   std::vector<Isa> isas = {Isa::kBaseline};
