@@ -47,16 +47,16 @@ template <class V4>
   std::memcpy(p, &v, sizeof v);
 }
 
-// The SH coefficients of the block's Gaussians ids[0 .. n) (padding lanes repeat the first) into
-// lanes, coef[f] = coefficient f = 3k + channel of every lane, 4 at a time by 4 x 4 transposes
-// (each Gaussian's 3K coefficients are contiguous); 3K must be a multiple of 4.
-template <int CW>
-[[gnu::always_inline]] inline void sh_to_lanes(const Gaussians& g, const size_t* ids, int n, int K,
+// The SH coefficients of the block's Gaussians into lanes (lane l: Gaussian id(l); padding
+// lanes repeat the first), coef[f] = coefficient f = 3k + channel of every lane, 4 at a time by
+// 4 x 4 transposes (each Gaussian's 3K coefficients are contiguous); 3K must be a multiple of 4.
+template <int CW, class Id>
+[[gnu::always_inline]] inline void sh_to_lanes(const Gaussians& g, Id id, int K,
                                                typename Lanes<CW>::V* coef) {
   using L = Lanes<CW>;
   for (int f = 0; f < 3 * K; f += 4) {
     typename L::V4 rows[CW];
-    for (int l = 0; l < CW; ++l) rows[l] = L::load4(&g.sh[ids[l < n ? l : 0] * K * 3 + size_t(f)]);
+    for (int l = 0; l < CW; ++l) rows[l] = L::load4(&g.sh[id(l) * K * 3 + size_t(f)]);
     L::transpose4(rows, coef + f);
   }
 }
@@ -185,9 +185,8 @@ template <int CW>
   if ((3 * K) % 4 == 0) {
     // The coefficients into lanes (sh_to_lanes); the same sums in the same order.
     V coef[48];
-    size_t ids[CW];
-    for (int l = 0; l < CW; ++l) ids[l] = i0 + size_t(l);
-    sh_to_lanes<CW>(g, ids, n, K, coef);
+    sh_to_lanes<CW>(
+        g, [&](int l) { return i0 + size_t(l < n ? l : 0); }, K, coef);
     for (int ch = 0; ch < 3; ++ch) {
       V c = L::splat(0.5f);
       for (int k = 0; k < K; ++k) c += basis[k] * coef[3 * k + ch];
@@ -339,7 +338,9 @@ template <int CW>
     sh::basis_grad<V>(deg, ddx, ddy, ddz, bx, by, bz);
     V gdx = V{}, gdy = V{}, gdz = V{};
     V coef[48];
-    if (rows4) sh_to_lanes<CW>(g, ids, n, K, coef);
+    if (rows4)
+      sh_to_lanes<CW>(
+          g, [&](int l) { return ids[l < n ? l : 0]; }, K, coef);
     for (int k = 1; k < K; ++k) {
       V c0, c1, c2;
       if (rows4) {
