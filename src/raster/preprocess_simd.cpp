@@ -245,8 +245,9 @@ template <int CW>
   }
 }
 
-// The chain rule of one block of CW Gaussians ids[0 .. n) (n <= CW real), from the summed
-// screen-space gradients to the raw parameters (preprocess.cpp's preprocess_backward, lane-wise).
+// The chain rule of one block of CW visible Gaussians ids[0 .. n) (n <= CW real), from the
+// summed screen-space gradients to the raw parameters (preprocess.cpp's preprocess_backward,
+// lane-wise); backward_range writes the others' zero gradients.
 template <int CW>
 [[gnu::always_inline]] inline void backward_block(const Gaussians& g, const CameraT<float>& cam,
                                                   const RasterResultT<float>& fwd, int threads,
@@ -262,7 +263,6 @@ template <int CW>
   V gs[kNG];
   for (int q = 0; q < kNG; ++q) gs[q] = V{};
   V mx, my, mz, qw, qx, qy, qz, l0, l1, l2, op, S[6], cn[3], keep[3];
-  int live = 0;
   for (int l = 0; l < CW; ++l) {
     const size_t i = ids[l < n ? l : 0];
     for (int th = 0; th < threads; ++th) {
@@ -279,20 +279,11 @@ template <int CW>
       cn[q][l] = fwd.conics[3 * i + q];
       keep[q][l] = fwd.sh_clamped[3 * i + q] ? 0.0f : 1.0f;
     }
-    live += l < n && fwd.radii[i] != 0;
   }
-  // Every output starts at zero; the 2D means take their screen gradient as it is.
+  // The 2D means take their screen gradient as it is.
   for (int l = 0; l < n; ++l) {
     const size_t i = ids[l];
-    for (int q = 0; q < 3; ++q) gr.means[3 * i + q] = 0, gr.log_scales[3 * i + q] = 0;
-    for (int q = 0; q < 4; ++q) gr.quats[4 * i + q] = 0;
-    gr.opacity_logits[i] = 0;
-    gr.means2d[2 * i] = gs[0][l];
-    gr.means2d[2 * i + 1] = gs[1][l];
-  }
-  if (live == 0) {
-    for (int l = 0; l < n; ++l) std::fill_n(&gr.sh[ids[l] * K * 3], 3 * K, 0.0f);
-    return;
+    gr.means2d[2 * i] = gs[0][l], gr.means2d[2 * i + 1] = gs[1][l];
   }
   const auto& R = cam.R;
   const V dlogit = gs[5] * op * (1.0f - op);
@@ -315,18 +306,9 @@ template <int CW>
       L::untranspose4(t + f, rows);
       for (int l = 0; l < n; ++l) store_once(&gr.sh[ids[l] * K * 3 + size_t(f)], rows[l]);
     }
-    for (int l = 0; l < n; ++l)
-      if (fwd.radii[ids[l]] == 0) {
-        float* d = &gr.sh[ids[l] * K * 3];
-        std::fill(d, d + 3 * K, 0.0f);
-      }
   } else {
     for (int l = 0; l < n; ++l) {
       float* d = &gr.sh[ids[l] * K * 3];
-      if (fwd.radii[ids[l]] == 0) {
-        std::fill(d, d + 3 * K, 0.0f);
-        continue;
-      }
       for (int k = 0; k < K; ++k)
         d[3 * k] = b[k][l] * gc0[l], d[3 * k + 1] = b[k][l] * gc1[l],
               d[3 * k + 2] = b[k][l] * gc2[l];
@@ -437,7 +419,6 @@ template <int CW>
           dqz = (gz - z * dotq) / qn;
   for (int l = 0; l < n; ++l) {
     const size_t i = ids[l];
-    if (fwd.radii[i] == 0) continue;
     gr.opacity_logits[i] = dlogit[l];
     gr.means[3 * i] = gmx[l], gr.means[3 * i + 1] = gmy[l], gr.means[3 * i + 2] = gmz[l];
     for (int c = 0; c < 3; ++c) gr.log_scales[3 * i + c] = dls[c][l];
@@ -467,10 +448,10 @@ __attribute__((target("avx2"), flatten)) void project_range_avx2(
   project_range<8>(g, in, cam, s, b, e, out);
 }
 
-// Gaussians [b, e): those that took no pixel (every screen-space gradient zero in every
-// thread's buffer; about 40 % on the bench scene, scattered among the others) get zero
-// gradients without the chain rule, whose every term would be zero; the rest go through it in
-// blocks of CW, listed by id.
+// Gaussians [b, e): those that were culled or took no pixel (every screen-space gradient zero
+// in every thread's buffer; about 40 % of the visible ones on the bench scene, scattered among
+// the others) get zero gradients without the chain rule, whose every term would be zero; the
+// rest go through it in blocks of CW, listed by id.
 template <int CW>
 [[gnu::always_inline]] inline void backward_range(const Gaussians& g, const CameraT<float>& cam,
                                                   const RasterResultT<float>& fwd, int threads,
@@ -489,7 +470,7 @@ template <int CW>
         any |= u << 1;
       }
     }
-    if (any) {
+    if (any && fwd.radii[i] != 0) {
       ids[n++] = i;
       if (n == CW) backward_block<CW>(g, cam, fwd, threads, ids, n, gr), n = 0;
       continue;
