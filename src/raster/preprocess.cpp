@@ -1,9 +1,9 @@
 // The rasterizer's per-Gaussian passes (3DGS's preprocess in forward.cu / backward.cu): project
 // every Gaussian before compositing, and after the backward tile pass take its summed
 // screen-space gradients back to the raw parameters. Both are built from the forward / backward
-// pairs of projection.hpp and sh.hpp; the backward reuses the forward's 3D covariance and
-// conic instead of recomputing them. The float forward runs in blocks (preprocess_simd.cpp);
-// the forward here is the double path of the tests.
+// pairs of projection.hpp and sh.hpp; the backward reads the conic, opacity and colour clamps
+// from the render records and recomputes the 3D covariance (cheaper than storing it). The float
+// forward runs in blocks (preprocess_simd.cpp); the forward here is the double path of the tests.
 #include <omp.h>
 
 #include "raster/raster_internal.hpp"
@@ -69,16 +69,8 @@ void preprocess_forward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ras
     rec[2] = conic[0], rec[3] = conic[1], rec[4] = conic[2];
     rec[5] = o;
     rec[9] = z;
-    rec[14] = rec[15] = 0;
-    if (out.image_only) continue;  // the rest is the backward's state
-    T* cv = &out.cov3d[6 * i];
-    cv[0] = S3(0, 0), cv[1] = S3(0, 1), cv[2] = S3(0, 2), cv[3] = S3(1, 1), cv[4] = S3(1, 2),
-    cv[5] = S3(2, 2);
-    out.means2d[2 * i] = u;
-    out.means2d[2 * i + 1] = v;
-    for (int k = 0; k < 3; ++k) out.conics[3 * i + k] = conic[k];
-    out.opacities[i] = o;
-    for (int k = 0; k < 3; ++k) out.sh_clamped[3 * i + k] = clamped[k];
+    rec[14] = T(clamped[0] + 2 * clamped[1] + 4 * clamped[2]);  // the backward's clamp bits
+    rec[15] = 0;
   }
 }
 
@@ -106,20 +98,25 @@ void preprocess_backward(const GaussiansT<T>& g, const CameraT<T>& cam, const Ra
     gr.means2d[2 * i] = gs[0];
     gr.means2d[2 * i + 1] = gs[1];
     if (fwd.radii[i] == 0) continue;
-    gr.opacity_logits[i] = opacity_backward(fwd.opacities[i], gs[5]);
+    // The forward's state: the render record (conic, opacity, clamp bits) and the 3D
+    // covariance, recomputed.
+    const T* rec = &fwd.packed[size_t(kRec) * i];
+    gr.opacity_logits[i] = opacity_backward(rec[5], gs[5]);
     const V3<T> m(g.means[3 * i], g.means[3 * i + 1], g.means[3 * i + 2]);
     // Colour -> SH coefficients and the view direction.
     V3<T> gmean = V3<T>::Zero();
     T dist;
     const V3<T> dir = sh::view_direction(m, cam.centre, &dist);
-    sh::sh_to_color_backward(deg, &g.sh[i * K * 3], dir, dist, &fwd.sh_clamped[3 * i], &gs[6],
-                             &gr.sh[i * K * 3], gmean);
+    const int bits = int(rec[14]);
+    const uint8_t clamped[3] = {uint8_t(bits & 1), uint8_t(bits >> 1 & 1), uint8_t(bits >> 2 & 1)};
+    sh::sh_to_color_backward(deg, &g.sh[i * K * 3], dir, dist, clamped, &gs[6], &gr.sh[i * K * 3],
+                             gmean);
     // Conic -> 2D covariance -> 3D covariance and the camera-space mean; the 2D mean.
     const V3<T> p = world_to_camera(cam, m);
-    const T* cv = &fwd.cov3d[6 * i];
-    M3<T> S3;
-    S3 << cv[0], cv[1], cv[2], cv[1], cv[3], cv[4], cv[2], cv[4], cv[5];
-    const M2<T> dS2 = cov2d_to_conic_backward(&fwd.conics[3 * i], &gs[2]);
+    Cov3d<T> cov;
+    quat_scale_to_cov3d(&g.quats[4 * i], &g.log_scales[3 * i], cov);
+    const M3<T>& S3 = cov.S;
+    const M2<T> dS2 = cov2d_to_conic_backward(rec + 2, &gs[2]);
     V3<T> gp = V3<T>::Zero();
     project_mean_backward(cam, p, &gs[0], gp);
     M3<T> dS3;

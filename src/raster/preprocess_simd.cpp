@@ -75,6 +75,32 @@ template <class L, class V = typename L::V, class I = typename L::I>
   ddz = L::sel(has, dz / dist, L::splat(1.f));
 }
 
+// The 3D covariance on lanes (quat_scale_to_cov3d): S = M M^T, M = R(q / |q|) diag(exp(s)),
+// with the pieces the chain rule reuses (|q|, the unit quaternion, R's entries, the scales). The
+// projection and the chain rule both call this, so the backward recomputes the forward's S bit
+// for bit instead of storing it (a round trip through memory cost the forward more than this).
+template <class L, class V = typename L::V>
+struct CovLanes {
+  V qn, w, x, y, z, R[3][3], sc[3], S00, S01, S02, S11, S12, S22;
+  [[gnu::always_inline]] CovLanes(V qw, V qx, V qy, V qz, V l0, V l1, V l2) {
+    qn = L::sqrt(qw * qw + qx * qx + qy * qy + qz * qz);
+    w = qw / qn, x = qx / qn, y = qy / qn, z = qz / qn;
+    sc[0] = L::exp(l0), sc[1] = L::exp(l1), sc[2] = L::exp(l2);
+    R[0][0] = 1 - 2 * (y * y + z * z), R[0][1] = 2 * (x * y - w * z), R[0][2] = 2 * (x * z + w * y);
+    R[1][0] = 2 * (x * y + w * z), R[1][1] = 1 - 2 * (x * x + z * z), R[1][2] = 2 * (y * z - w * x);
+    R[2][0] = 2 * (x * z - w * y), R[2][1] = 2 * (y * z + w * x), R[2][2] = 1 - 2 * (x * x + y * y);
+    V M[3][3];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) M[r][c] = R[r][c] * sc[c];
+    S00 = M[0][0] * M[0][0] + M[0][1] * M[0][1] + M[0][2] * M[0][2];
+    S01 = M[0][0] * M[1][0] + M[0][1] * M[1][1] + M[0][2] * M[1][2];
+    S02 = M[0][0] * M[2][0] + M[0][1] * M[2][1] + M[0][2] * M[2][2];
+    S11 = M[1][0] * M[1][0] + M[1][1] * M[1][1] + M[1][2] * M[1][2];
+    S12 = M[1][0] * M[2][0] + M[1][1] * M[2][1] + M[1][2] * M[2][2];
+    S22 = M[2][0] * M[2][0] + M[2][1] * M[2][1] + M[2][2] * M[2][2];
+  }
+};
+
 // Where the projection reads the means, rotations and opacity logits: Gaussian i's at index
 // i - first of these (the Gaussians' own, first = 0, or a GaussianSource's chunk); the rest comes
 // from the Gaussians by id. padded: a mean's three floats may be read as four everywhere.
@@ -131,20 +157,10 @@ template <int CW>
   I ok = pz >= s.near_plane;
   const V o = 1.0f / (1.0f + L::exp(-lo));
   ok &= o >= float(1.0 / 255.0);
-  // 3D covariance S = M M^T, M = R(q / |q|) diag(exp(log_scale)).
-  const V qn = L::sqrt(qw * qw + qx * qx + qy * qy + qz * qz);
-  ok &= qn > 1e-12f;
-  const V w = qw / qn, x = qx / qn, y = qy / qn, z = qz / qn;
-  const V s0 = L::exp(l0), s1 = L::exp(l1), s2 = L::exp(l2);
-  const V M00 = (1 - 2 * (y * y + z * z)) * s0, M01 = (2 * (x * y - w * z)) * s1,
-          M02 = (2 * (x * z + w * y)) * s2;
-  const V M10 = (2 * (x * y + w * z)) * s0, M11 = (1 - 2 * (x * x + z * z)) * s1,
-          M12 = (2 * (y * z - w * x)) * s2;
-  const V M20 = (2 * (x * z - w * y)) * s0, M21 = (2 * (y * z + w * x)) * s1,
-          M22 = (1 - 2 * (x * x + y * y)) * s2;
-  const V S00 = M00 * M00 + M01 * M01 + M02 * M02, S01 = M00 * M10 + M01 * M11 + M02 * M12,
-          S02 = M00 * M20 + M01 * M21 + M02 * M22, S11 = M10 * M10 + M11 * M11 + M12 * M12,
-          S12 = M10 * M20 + M11 * M21 + M12 * M22, S22 = M20 * M20 + M21 * M21 + M22 * M22;
+  // 3D covariance.
+  const CovLanes<L> cov(qw, qx, qy, qz, l0, l1, l2);
+  ok &= cov.qn > 1e-12f;
+  const V S00 = cov.S00, S01 = cov.S01, S02 = cov.S02, S11 = cov.S11, S12 = cov.S12, S22 = cov.S22;
   // EWA: T = J R with the perspective Jacobian at the clamped x/z, y/z; S2 = T S T^T.
   const V ux = L::min(L::max(px / pz, L::splat(cam.lox)), L::splat(cam.hix));
   const V uy = L::min(L::max(py / pz, L::splat(cam.loy)), L::splat(cam.hiy));
@@ -210,10 +226,14 @@ template <int CW>
   const V zero = L::splat(0.f);
   const V x0 = L::max(fx0, zero), x1 = L::min(fx1, L::splat(Wm)), y0 = L::max(fy0, zero),
           y1 = L::min(fy1, L::splat(Hm));
+  // The colour channels the clamp at zero cut (the backward's), as bits 1, 2, 4 of slot 14.
+  const V clamp = L::sel(rgb[0] < 0.0f, L::splat(1.f), zero) +
+                  L::sel(rgb[1] < 0.0f, L::splat(2.f), zero) +
+                  L::sel(rgb[2] < 0.0f, L::splat(4.f), zero);
   const V piece[4][4] = {{u, v, cn0, cn1},
                          {cn2, o, L::max(rgb[0], zero), L::max(rgb[1], zero)},
                          {L::max(rgb[2], zero), pz, x0, x1},
-                         {y0, y1, zero, zero}};
+                         {y0, y1, clamp, zero}};
   // The tiles the pixel rectangle touches, two words a Gaussian (pack_tile_span, lane-wise).
   auto tiles = [](V a) { return __builtin_convertvector(a, I) / kTS; };
   const I trx = tiles(x0) | tiles(x1) << 16, try_ = tiles(y0) | tiles(y1) << 16;
@@ -224,7 +244,6 @@ template <int CW>
       std::memcpy(&out.records[size_t(kRec) * (i0 + size_t(l)) + size_t(4 * c)], &rows[l],
                   sizeof(V4));
   }
-  const bool full = !out.image_only;  // also the backward's per-Gaussian state
   for (int l = 0; l < n; ++l) {
     const size_t i = i0 + size_t(l);
     if (!ok[l]) {
@@ -234,14 +253,6 @@ template <int CW>
     out.radii[i] = std::max(1, int(rad[l]));
     out.depths[i] = pz[l];
     out.tile_rects[2 * i] = uint32_t(trx[l]), out.tile_rects[2 * i + 1] = uint32_t(try_[l]);
-    if (!full) continue;
-    float* cv = &out.cov3d[6 * i];
-    cv[0] = S00[l], cv[1] = S01[l], cv[2] = S02[l], cv[3] = S11[l], cv[4] = S12[l], cv[5] = S22[l];
-    out.means2d[2 * i] = u[l], out.means2d[2 * i + 1] = v[l];
-    float* cn = &out.conics[3 * i];
-    cn[0] = cn0[l], cn[1] = cn1[l], cn[2] = cn2[l];
-    out.opacities[i] = o[l];
-    for (int ch = 0; ch < 3; ++ch) out.sh_clamped[3 * i + ch] = rgb[ch][l] < 0;
   }
 }
 
@@ -259,27 +270,47 @@ template <int CW>
   const int deg = g.sh_degree, K = g.coeffs();
   const size_t N = g.size(), stride = size_t(kNG) * N;
   // Screen-space gradients summed over the threads' buffers (in thread order, as the scalar
-  // loop); the block's parameters and forward state (padding lanes repeat the first Gaussian).
+  // loop); the block's parameters and its render records (padding lanes repeat the first
+  // Gaussian). The records give the conic, the opacity and the clamp bits; the 3D covariance is
+  // recomputed as the projection computed it.
   V gs[kNG];
   for (int q = 0; q < kNG; ++q) gs[q] = V{};
-  V mx, my, mz, qw, qx, qy, qz, l0, l1, l2, op, S[6], cn[3], keep[3];
-  for (int l = 0; l < CW; ++l) {
-    const size_t i = ids[l < n ? l : 0];
-    for (int th = 0; th < threads; ++th) {
-      const float* a = gr.scratch.data() + size_t(th) * stride + size_t(kNG) * i;
-      for (int q = 0; q < kNG; ++q) gs[q][l] += a[q];
+  V mx, my, mz, qw, qx, qy, qz, l0, l1, l2, op, cn[3], keep[3];
+  {
+    V4 rm[CW], rq[CW], rs[CW], r0[CW], r1[CW], r3[CW];
+    for (int l = 0; l < CW; ++l) {
+      const size_t i = ids[l < n ? l : 0];
+      for (int th = 0; th < threads; ++th) {
+        const float* a = gr.scratch.data() + size_t(th) * stride + size_t(kNG) * i;
+        for (int q = 0; q < kNG; ++q) gs[q][l] += a[q];
+      }
+      rq[l] = L::load4(&g.quats[4 * i]);
+      if (i + 1 < N) {  // four floats of the means and log-scales (the fourth is unused)
+        rm[l] = L::load4(&g.means[3 * i]), rs[l] = L::load4(&g.log_scales[3 * i]);
+      } else {
+        rm[l] = V4{g.means[3 * i], g.means[3 * i + 1], g.means[3 * i + 2], 0.f};
+        rs[l] = V4{g.log_scales[3 * i], g.log_scales[3 * i + 1], g.log_scales[3 * i + 2], 0.f};
+      }
+      const float* rec = &fwd.packed[size_t(kRec) * i];
+      r0[l] = L::load4(rec), r1[l] = L::load4(rec + 4), r3[l] = L::load4(rec + 12);
     }
-    mx[l] = g.means[3 * i], my[l] = g.means[3 * i + 1], mz[l] = g.means[3 * i + 2];
-    qw[l] = g.quats[4 * i], qx[l] = g.quats[4 * i + 1], qy[l] = g.quats[4 * i + 2],
-    qz[l] = g.quats[4 * i + 3];
-    l0[l] = g.log_scales[3 * i], l1[l] = g.log_scales[3 * i + 1], l2[l] = g.log_scales[3 * i + 2];
-    op[l] = fwd.opacities[i];
-    for (int q = 0; q < 6; ++q) S[q][l] = fwd.cov3d[6 * i + q];
-    for (int q = 0; q < 3; ++q) {
-      cn[q][l] = fwd.conics[3 * i + q];
-      keep[q][l] = fwd.sh_clamped[3 * i + q] ? 0.0f : 1.0f;
-    }
+    V t[4];
+    L::transpose4(rm, t);
+    mx = t[0], my = t[1], mz = t[2];
+    L::transpose4(rs, t);
+    l0 = t[0], l1 = t[1], l2 = t[2];
+    L::transpose4(rq, t);
+    qw = t[0], qx = t[1], qy = t[2], qz = t[3];
+    L::transpose4(r0, t);
+    cn[0] = t[2], cn[1] = t[3];
+    L::transpose4(r1, t);
+    cn[2] = t[0], op = t[1];
+    L::transpose4(r3, t);
+    const typename L::I bits = __builtin_convertvector(t[2], typename L::I);
+    for (int c = 0; c < 3; ++c) keep[c] = L::sel((bits & (1 << c)) != 0, V{}, L::splat(1.f));
   }
+  const CovLanes<L> cov(qw, qx, qy, qz, l0, l1, l2);
+  const V S[6] = {cov.S00, cov.S01, cov.S02, cov.S11, cov.S12, cov.S22};
   // The 2D means take their screen gradient as it is.
   for (int l = 0; l < n; ++l) {
     const size_t i = ids[l];
@@ -391,12 +422,9 @@ template <int CW>
   gmy += R(0, 1) * gpx + R(1, 1) * gpy + R(2, 1) * gpz;
   gmz += R(0, 2) * gpx + R(1, 2) * gpy + R(2, 2) * gpz;
   // 3D covariance -> scale and rotation (quat_scale_to_cov3d_backward).
-  const V qn = L::sqrt(qw * qw + qx * qx + qy * qy + qz * qz);
-  const V w = qw / qn, x = qx / qn, y = qy / qn, z = qz / qn;
-  const V sc[3] = {L::exp(l0), L::exp(l1), L::exp(l2)};
-  const V Rq[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},
-                      {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
-                      {2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)}};
+  const V &qn = cov.qn, &w = cov.w, &x = cov.x, &y = cov.y, &z = cov.z;
+  const V(&sc)[3] = cov.sc;
+  const V(&Rq)[3][3] = cov.R;
   V GR[3][3], dls[3];
   for (int c = 0; c < 3; ++c) {
     // GM(:, c) = 2 dS M(:, c), M(:, c) = Rq(:, c) sc[c].

@@ -109,12 +109,6 @@ void forward(const GaussiansT<T>& g, const GaussianSource* source, const Camera&
   out.radii.resize(N);
   out.depths.resize(N);
   out.tile_rects.resize(2 * N);
-  const size_t nb = s.image_only ? 0 : N;  // the backward's per-Gaussian state
-  out.means2d.resize(2 * nb);
-  out.conics.resize(3 * nb);
-  out.cov3d.resize(6 * nb);
-  out.sh_clamped.resize(3 * nb);
-  out.opacities.resize(nb);
   out.records.resize(size_t(raster::kRec) * N);
   out.final_T.resize(s.image_only ? 0 : size_t(W) * H);
   out.n_contrib.resize(s.image_only ? 0 : size_t(W) * H);
@@ -164,8 +158,8 @@ void rasterize_backward(const GaussiansT<T>& g, const Camera& camera, const Rast
   const size_t N = g.size();
   if (fwd.image_only)
     throw Error("rasterize_backward: the forward result is image_only (no backward state)");
-  if (fwd.radii.size() != N || fwd.color.width != W || fwd.color.height != H ||
-      fwd.entry_cells.size() != fwd.point_list.size())
+  if (fwd.radii.size() != N || fwd.packed.size() != size_t(kRec) * N || fwd.color.width != W ||
+      fwd.color.height != H || fwd.entry_cells.size() != fwd.point_list.size())
     throw Error("rasterize_backward: forward result does not match the Gaussians / camera");
   if (dLdc.width != W || dLdc.height != H || dLdc.channels != 3)
     throw Error("rasterize_backward: dL/dcolor must be W x H x 3");

@@ -38,8 +38,8 @@ struct RasterSettings {
   RasterKernel kernel = RasterKernel::kAuto;
   // Colour and alpha only (playback, evaluation): no expected depth and none of the per-pixel
   // state the backward pass needs, which the compositing then neither accumulates nor writes
-  // (depth, final_T, n_contrib and the per-Gaussian means2d, conics, cov3d, sh_clamped and
-  // opacities come back empty; rasterize_backward refuses such a result).
+  // (depth, final_T, n_contrib and entry_cells come back empty; rasterize_backward refuses such
+  // a result).
   bool image_only = false;
 };
 
@@ -66,16 +66,13 @@ struct RasterResultT {
   std::vector<T> depths;   // N camera-space z
   // 2N: the tiles a visible Gaussian's pixel rectangle touches, tx0 | tx1 << 16, ty0 | ty1 << 16
   std::vector<uint32_t> tile_rects;
-  // State for the backward (empty after an image_only forward, which does not need it).
-  std::vector<T> means2d;           // 2N, pixel coordinates
-  std::vector<T> conics;            // 3N (a, b, c) of the inverse 2D covariance
-  std::vector<T> cov3d;             // 6N (xx, xy, xz, yy, yz, zz)
-  std::vector<uint8_t> sh_clamped;  // 3N
-  std::vector<T> opacities;         // N activated opacity
-  // packed[16 i ..] = the render record of Gaussian i (mean2d, conic, opacity, SH colour, depth,
-  // pixel rect x0 x1 y0 y1 inclusive), valid where radii > 0, as the projection wrote it into
-  // `records` (the two swap; records is scratch after the forward). A record is 64 bytes: the
-  // arrays start on a cache line, so each record lies in one line.
+  // packed[16 i ..] = the render record of Gaussian i, valid where radii > 0: [0, 2) mean2d
+  // (pixels), [2, 5) conic (a, b, c of the inverse 2D covariance), [5] activated opacity, [6, 9)
+  // colour (SH, clamped at 0), [9] depth, [10, 14) pixel rect x0 x1 y0 y1 inclusive, [14] the
+  // channels the clamp cut (bits 1, 2, 4), [15] 0; as the projection wrote it into `records` (the
+  // two swap; records is scratch after the forward). A record is 64 bytes: the arrays start on a
+  // cache line, so each record lies in one line. The records are also the backward's
+  // per-Gaussian state: it recomputes the 3D covariance from the parameters.
   LineAlignedVector<T> packed, records;
   std::vector<uint32_t> point_list;   // Gaussian ids, tile-major then depth order
   std::vector<uint32_t> tile_ranges;  // 2 * tiles: [start, end) into point_list
