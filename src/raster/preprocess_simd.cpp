@@ -277,12 +277,14 @@ template <int CW>
   for (int q = 0; q < kNG; ++q) gs[q] = V{};
   V mx, my, mz, qw, qx, qy, qz, l0, l1, l2, op, cn[3], keep[3];
   {
-    V4 rm[CW], rq[CW], rs[CW], r0[CW], r1[CW], r3[CW];
+    V4 rm[CW], rq[CW], rs[CW], r0[CW], r1[CW], r3[CW], ga[CW], gb[CW];
+    static_assert(kNG == 9, "the sums as two rows of 4 and one");
     for (int l = 0; l < CW; ++l) {
       const size_t i = ids[l < n ? l : 0];
+      ga[l] = gb[l] = V4{};
       for (int th = 0; th < threads; ++th) {
         const float* a = gr.scratch.data() + size_t(th) * stride + size_t(kNG) * i;
-        for (int q = 0; q < kNG; ++q) gs[q][l] += a[q];
+        ga[l] += L::load4(a), gb[l] += L::load4(a + 4), gs[8][l] += a[8];
       }
       rq[l] = L::load4(&g.quats[4 * i]);
       if (i + 1 < N) {  // four floats of the means and log-scales (the fourth is unused)
@@ -294,6 +296,10 @@ template <int CW>
       const float* rec = &fwd.packed[size_t(kRec) * i];
       r0[l] = L::load4(rec), r1[l] = L::load4(rec + 4), r3[l] = L::load4(rec + 12);
     }
+    L::transpose4(ga, gs);
+    L::transpose4(gb, gs + 4);
+    L::transpose4(ga, gs);
+    L::transpose4(gb, gs + 4);
     V t[4];
     L::transpose4(rm, t);
     mx = t[0], my = t[1], mz = t[2];
@@ -489,15 +495,19 @@ template <int CW>
   size_t ids[CW];
   int n = 0;
   for (size_t i = b; i < e; ++i) {
-    uint32_t any = 0;  // every thread's nine values' bits but the signs (-0 counts as zero)
+    // Every thread's nine values' bits but the signs (-0 counts as zero), or-ed.
+    using U4 = uint32_t __attribute__((vector_size(16)));
+    U4 bits4 = {};
+    uint32_t bits = 0;
     for (int th = 0; th < threads; ++th) {
       const float* a = gr.scratch.data() + size_t(th) * stride + size_t(kNG) * i;
-      for (int q = 0; q < kNG; ++q) {
-        uint32_t u;
-        std::memcpy(&u, &a[q], 4);
-        any |= u << 1;
-      }
+      U4 x, y;
+      uint32_t u;
+      std::memcpy(&x, a, 16), std::memcpy(&y, a + 4, 16), std::memcpy(&u, a + 8, 4);
+      bits4 |= x | y, bits |= u;
     }
+    bits4 <<= 1;
+    const uint32_t any = bits4[0] | bits4[1] | bits4[2] | bits4[3] | bits << 1;
     if (any && fwd.radii[i] != 0) {
       ids[n++] = i;
       if (n == CW) backward_block<CW>(g, cam, fwd, threads, ids, n, gr), n = 0;
