@@ -14,7 +14,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <string>
+#include <type_traits>
 
 #include "core/error.hpp"
 #include "raster/projection.hpp"
@@ -312,19 +314,61 @@ template <class V, int BW, int BH>
   return v;
 }
 
+// Whether a tile-local layout keeps each row's pixels 4c .. 4c + 3 side by side (store_tile
+// moves them four at a time).
+template <int (*index)(int, int)>
+constexpr bool fours_side_by_side() {
+  for (int r = 0; r < kTS; ++r)
+    for (int c = 0; c < kTS; ++c)
+      if (index(c, r) != index(c & ~3, r) + (c & 3)) return false;
+  return true;
+}
+
 // A finished tile's pixels from its tile-local state (kTilePixels each, pixel (c, r) at
 // index(c, r)) into `out`: colour over the background by the final transmittance |Tt|, alpha,
 // and with `full` the expected depth and the backward's state (final transmittance, last
-// contributor).
+// contributor). Four pixels of a row at a time where the image holds them (the colours
+// interleaved by shuffles), the same operations on each pixel as one at a time.
 template <class T, class S, int (*index)(int, int) = row_index>
 [[gnu::always_inline]] inline void store_tile(RasterResultT<T>& out, int ox, int oy, const T* bg,
                                               const T* Tt, const T* C0, const T* C1, const T* C2,
                                               const T* Dp, const S* last, bool full) {
+  static_assert(fours_side_by_side<index>(), "rows of four pixels side by side");
+  using B = std::conditional_t<sizeof(T) == 4, int32_t, int64_t>;  // T's bits
+  typedef T V4 __attribute__((vector_size(4 * sizeof(T))));
+  typedef S I4 __attribute__((vector_size(4 * sizeof(S))));
+  typedef B B4 __attribute__((vector_size(4 * sizeof(T))));
+  const B4 no_sign = B4{} + std::numeric_limits<B>::max();
   const int W = out.color.width, H = out.color.height;
-  for (int r = 0; r < kTS && oy + r < H; ++r)
-    for (int c = 0; c < kTS && ox + c < W; ++c) {
+  const int w = std::min(kTS, W - ox);
+  for (int r = 0; r < kTS && oy + r < H; ++r) {
+    const size_t row = size_t(oy + r) * W + ox;
+    int c = 0;
+    for (; c + 4 <= w; c += 4) {
       const int p = index(c, r);
-      const size_t pix = size_t(oy + r) * W + ox + c;
+      const size_t pix = row + size_t(c);
+      const V4 Tf = (V4)((B4)vload<V4>(Tt + p) & no_sign);
+      const V4 r0 = vload<V4>(C0 + p) + Tf * bg[0], r1 = vload<V4>(C1 + p) + Tf * bg[1],
+               r2 = vload<V4>(C2 + p) + Tf * bg[2];
+      const V4 t0 = __builtin_shufflevector(r0, r1, 0, 4, 1, 5);
+      const V4 t1 = __builtin_shufflevector(r1, r2, 1, 5, 2, 6);
+      const V4 t2 = __builtin_shufflevector(r0, r1, 3, 7, 3, 7);
+      T* rgb = &out.color.data[3 * pix];
+      vstore(rgb, __builtin_shufflevector(t0, r2, 0, 1, 4, 2));
+      vstore(rgb + 4, __builtin_shufflevector(t1, r0, 0, 1, 6, 2));
+      vstore(rgb + 8, __builtin_shufflevector(r2, t2, 2, 4, 5, 3));
+      vstore(&out.alpha.data[pix], T(1) - Tf);
+      if (full) {
+        vstore(&out.depth.data[pix], vload<V4>(Dp + p));
+        vstore(&out.final_T[pix], Tf);
+        const auto n =
+            __builtin_convertvector(vload<I4>(last + p), uint32_t __attribute__((vector_size(16))));
+        vstore(&out.n_contrib[pix], n);
+      }
+    }
+    for (; c < w; ++c) {
+      const int p = index(c, r);
+      const size_t pix = row + size_t(c);
       const T Tf = std::abs(Tt[p]);
       out.color.data[3 * pix] = C0[p] + Tf * bg[0];
       out.color.data[3 * pix + 1] = C1[p] + Tf * bg[1];
@@ -336,6 +380,7 @@ template <class T, class S, int (*index)(int, int) = row_index>
         out.n_contrib[pix] = uint32_t(last[p]);
       }
     }
+  }
 }
 
 template <class T>
