@@ -244,13 +244,28 @@ template <int CW>
       std::memcpy(&out.records[size_t(kRec) * (i0 + size_t(l)) + size_t(4 * c)], &rows[l],
                   sizeof(V4));
   }
+  // Radii (0: culled), depths and tile rectangles; a whole block by vector stores (a culled
+  // Gaussian's depth and rectangle are then written too, and never read).
+  const I one = I{} + 1, ri = __builtin_convertvector(rad, I);
+  const I radii = ok & (ri > one ? ri : one);
+  if (n == CW) {
+    std::memcpy(&out.radii[i0], &radii, sizeof radii);
+    std::memcpy(&out.depths[i0], &pz, sizeof pz);
+    I rects[2];
+    if constexpr (CW == 4) {
+      rects[0] = __builtin_shufflevector(trx, try_, 0, 4, 1, 5);
+      rects[1] = __builtin_shufflevector(trx, try_, 2, 6, 3, 7);
+    } else {
+      rects[0] = __builtin_shufflevector(trx, try_, 0, 8, 1, 9, 2, 10, 3, 11);
+      rects[1] = __builtin_shufflevector(trx, try_, 4, 12, 5, 13, 6, 14, 7, 15);
+    }
+    std::memcpy(&out.tile_rects[2 * i0], rects, sizeof rects);
+    return;
+  }
   for (int l = 0; l < n; ++l) {
     const size_t i = i0 + size_t(l);
-    if (!ok[l]) {
-      out.radii[i] = 0;
-      continue;
-    }
-    out.radii[i] = std::max(1, int(rad[l]));
+    out.radii[i] = radii[l];
+    if (!ok[l]) continue;
     out.depths[i] = pz[l];
     out.tile_rects[2 * i] = uint32_t(trx[l]), out.tile_rects[2 * i + 1] = uint32_t(try_[l]);
   }
