@@ -75,8 +75,39 @@ template <int BW, int BH, class T, class Res, class Img>
   using SI = typename SV::S;
   alignas(64) SI last[kTilePixels];
   int jmax = 0;  // one past the tile's last contributor
+  // Four pixels of a row at a time where the image holds them (dL/dcolor de-interleaved by
+  // shuffles), the rest one at a time; the same values either way.
+  static_assert(fours_side_by_side<block_index<BW, BH>>(), "rows of four pixels side by side");
+  using Data = std::remove_cv_t<std::remove_reference_t<decltype(dLdc.data[0])>>;
+  constexpr bool kByFours = std::is_same_v<Data, T> && sizeof(SI) == 4;  // (float)
+  typedef T V4 __attribute__((vector_size(4 * sizeof(T))));
+  typedef SI I4 __attribute__((vector_size(4 * sizeof(SI))));
+  I4 jmax4{};
+  const int w4 = kByFours ? std::min(kTS, W - ox) & ~3 : 0;
+  for (int r = 0; r < kTS && oy + r < H; ++r)
+    for (int c = 0; c < w4; c += 4) {
+      const int p = block_index<BW, BH>(c, r);
+      const size_t pix = size_t(oy + r) * W + ox + size_t(c);
+      const V4 ft = vload<V4>(&fwd.final_T[pix]);
+      vstore(Tt + p, ft), vstore(Tf + p, ft);
+      I4 lc;
+      std::memcpy(&lc, &fwd.n_contrib[pix], sizeof lc);  // (counts below 2^31)
+      vstore(last + p, lc);
+      jmax4 = jmax4 > lc ? jmax4 : lc;
+      const T* d = &dLdc.data[3 * pix];
+      const V4 a = vload<V4>(d), b = vload<V4>(d + 4), e = vload<V4>(d + 8);
+      const V4 t0 = __builtin_shufflevector(a, b, 0, 3, 6, 7);
+      const V4 t1 = __builtin_shufflevector(a, b, 1, 4, 7, 7);
+      const V4 t2 = __builtin_shufflevector(a, b, 2, 5, 5, 5);
+      vstore(D0 + p, __builtin_shufflevector(t0, e, 0, 1, 2, 5));
+      vstore(D1 + p, __builtin_shufflevector(t1, e, 0, 1, 2, 6));
+      vstore(D2 + p, __builtin_shufflevector(t2, e, 0, 1, 4, 7));
+      vstore(DA + p, has_da ? vload<V4>(&dLda.data[pix]) : V4{});
+      vstore(R0 + p, V4{} + bg[0]), vstore(R1 + p, V4{} + bg[1]), vstore(R2 + p, V4{} + bg[2]);
+    }
+  for (int l = 0; l < 4; ++l) jmax = std::max(jmax, int(jmax4[l]));
   for (int r = 0; r < kTS; ++r)
-    for (int c = 0; c < kTS; ++c) {
+    for (int c = oy + r < H ? w4 : 0; c < kTS; ++c) {
       const int p = block_index<BW, BH>(c, r);
       if (ox + c < W && oy + r < H) {
         const size_t pix = size_t(oy + r) * W + ox + c;
