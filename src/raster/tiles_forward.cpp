@@ -5,6 +5,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <limits>
 #include <type_traits>
 
 #include "raster/raster_internal.hpp"
@@ -91,6 +92,7 @@ template <int BW, int BH, bool kFull, class T, class Res>
   constexpr bool kByMasks = kHaveSignBits8 && kBlocks == 32 && N == 8 && std::is_same_v<T, float>;
   alignas(64) uint32_t slot_blocks[kByMasks ? kGather + 8 : 1];
   const V col_off = block_columns<V, BW, BH>(), row_off = block_rows<V, BW, BH>();
+  const VI sign = VI{} + std::numeric_limits<SI>::min();  // T's sign bit in every lane
   // Whether any lane of a mask is set (the sign bits where the AVX2 kernel has them).
   [[maybe_unused]] const auto any_lane = [](const VI& m) {
     if constexpr (kHaveSignBits8 && N == 8 && std::is_same_v<T, float>)
@@ -192,18 +194,21 @@ template <int BW, int BH, bool kFull, class T, class Res>
           in[k] = (pw[k] <= T(0)) & (al[k] >= T(1.0f / 255.0f));
         }
         for (int k = 0; k < kGroup; ++k) {
+          // A pixel takes the Gaussian (con) when it is in its alpha range and the
+          // transmittance stays above 1e-4; a finished pixel (Tp < 0) gives Tn <= 0, so it never
+          // does. One that would fall below finishes: Tp becomes -Tp, which for a pixel in
+          // range is Tp with the sign bit set (a finished one's Tp already has it). The
+          // transmittance's chain is then a product, a comparison and a blend.
           const int j = li[i + k];
           const V Tp = Tb;
-          const VI ok = in[k] & (Tp > T(0));
           const V Tn = Tp * (T(1) - al[k]);
-          const VI term = ok & (Tn < T(1e-4));
-          const VI con = ok & ~term;
+          const VI con = in[k] & ~(Tn < T(1e-4));
           const V w = con ? al[k] * Tp : V{};
           c0 = c0 + w * gr[j];
           c1 = c1 + w * gg[j];
           c2 = c2 + w * gbl[j];
           if constexpr (kFull) dp = dp + w * gz[j];
-          Tb = con ? Tn : (term ? -Tp : Tp);
+          Tb = con ? Tn : (V)((VI)Tp | (in[k] & sign));
           if constexpr (kFull) {
             lb = (con & SI(gidx[j])) | (~con & lb);
             gcells[j] |= any_lane(con) ? cells : 0u;
