@@ -146,11 +146,16 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
       const auto [tx0, tx1, ty0, ty1] = unpack_tile_rect(xr, yr);
       const int nx = tx1 - tx0, ny = ty1 - ty0, t = ty0 * tiles_x + tx0;
       if ((nx | ny) <= 1) {  // at most 2 x 2 tiles (most Gaussians): no loop to mispredict
+        // The four counters (some the same one when nx or ny is 0) read before any is
+        // written, then written last-first, so that where two coincide the first tile's
+        // write lands last: the counts as four increments in turn, without a chain of
+        // stores and reloads through one counter.
         const int dy = ny * tiles_x;
-        ++cnt[t];
-        cnt[t + nx] += uint32_t(nx);
-        cnt[t + dy] += uint32_t(ny);
-        cnt[t + nx + dy] += uint32_t(nx & ny);
+        const uint32_t c0 = cnt[t], c1 = cnt[t + nx], c2 = cnt[t + dy], c3 = cnt[t + nx + dy];
+        cnt[t + nx + dy] = c3 + uint32_t(nx & ny);
+        cnt[t + dy] = c2 + uint32_t(ny);
+        cnt[t + nx] = c1 + uint32_t(nx);
+        cnt[t] = c0 + 1;
       } else {
         for (int ty = ty0; ty <= ty1; ++ty)
           for (int tx = tx0; tx <= tx1; ++tx) ++cnt[ty * tiles_x + tx];
@@ -181,17 +186,19 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
           unpack_tile_rect(sorted_rects[2 * k], sorted_rects[2 * k + 1]);
       const int nx = tx1 - tx0, ny = ty1 - ty0, t = ty0 * tiles_x + tx0;
       if ((nx | ny) <= 1) {
-        // The three optional tiles write to this thread's spare slot when absent.
+        // The three optional tiles write to this thread's spare slot when absent; the
+        // counters read before and written after, last-first, as in the count above.
         const int dy = ny * tiles_x;
-        list[cnt[t]++] = id;
-        auto put = [&](int tt, int on) {
-          const uint32_t at = on ? cnt[tt] : spare;
-          list[at] = id;
-          cnt[tt] += uint32_t(on);
-        };
-        put(t + nx, nx);
-        put(t + dy, ny);
-        put(t + nx + dy, nx & ny);
+        const uint32_t c0 = cnt[t], c1 = cnt[t + nx], c2 = cnt[t + dy], c3 = cnt[t + nx + dy];
+        const int nxy = nx & ny;
+        list[c0] = id;
+        list[nx ? c1 : spare] = id;
+        list[ny ? c2 : spare] = id;
+        list[nxy ? c3 : spare] = id;
+        cnt[t + nx + dy] = c3 + uint32_t(nxy);
+        cnt[t + dy] = c2 + uint32_t(ny);
+        cnt[t + nx] = c1 + uint32_t(nx);
+        cnt[t] = c0 + 1;
       } else {
         for (int ty = ty0; ty <= ty1; ++ty)
           for (int tx = tx0; tx <= tx1; ++tx) list[cnt[ty * tiles_x + tx]++] = id;
