@@ -101,6 +101,21 @@ struct CovLanes {
   }
 };
 
+// A block's means, log-scales and quaternions, one 4-float row a lane (the fourth float of a
+// mean or log-scale unused), into lanes by 4 x 4 transposes.
+template <class L, class V = typename L::V, class V4 = typename L::V4>
+[[gnu::always_inline]] inline void params_to_lanes(const V4* rm, const V4* rs, const V4* rq, V& mx,
+                                                   V& my, V& mz, V& l0, V& l1, V& l2, V& qw, V& qx,
+                                                   V& qy, V& qz) {
+  V t[4];
+  L::transpose4(rm, t);
+  mx = t[0], my = t[1], mz = t[2];
+  L::transpose4(rs, t);
+  l0 = t[0], l1 = t[1], l2 = t[2];
+  L::transpose4(rq, t);
+  qw = t[0], qx = t[1], qy = t[2], qz = t[3];
+}
+
 // Where the projection reads the means, rotations and opacity logits: Gaussian i's at index
 // i - first of these (the Gaussians' own, first = 0, or a GaussianSource's chunk); the rest comes
 // from the Gaussians by id. padded: a mean's three floats may be read as four everywhere.
@@ -141,13 +156,7 @@ template <int CW>
         rs[l] = V4{g.log_scales[3 * i], g.log_scales[3 * i + 1], g.log_scales[3 * i + 2], 0.f};
       lo[l] = in.opacity[k];
     }
-    V t[4];
-    L::transpose4(rm, t);
-    mx = t[0], my = t[1], mz = t[2];
-    L::transpose4(rs, t);
-    l0 = t[0], l1 = t[1], l2 = t[2];
-    L::transpose4(rq, t);
-    qw = t[0], qx = t[1], qy = t[2], qz = t[3];
+    params_to_lanes<L>(rm, rs, rq, mx, my, mz, l0, l1, l2, qw, qx, qy, qz);
   }
   const auto& R = cam.R;
   // World -> camera.
@@ -313,15 +322,8 @@ template <int CW>
     }
     L::transpose4(ga, gs);
     L::transpose4(gb, gs + 4);
-    L::transpose4(ga, gs);
-    L::transpose4(gb, gs + 4);
+    params_to_lanes<L>(rm, rs, rq, mx, my, mz, l0, l1, l2, qw, qx, qy, qz);
     V t[4];
-    L::transpose4(rm, t);
-    mx = t[0], my = t[1], mz = t[2];
-    L::transpose4(rs, t);
-    l0 = t[0], l1 = t[1], l2 = t[2];
-    L::transpose4(rq, t);
-    qw = t[0], qx = t[1], qy = t[2], qz = t[3];
     L::transpose4(r0, t);
     cn[0] = t[2], cn[1] = t[3];
     L::transpose4(r1, t);
