@@ -16,7 +16,6 @@
 #include <cstring>
 #include <limits>
 #include <string>
-#include <type_traits>
 
 #include "core/error.hpp"
 #include "raster/projection.hpp"
@@ -334,11 +333,10 @@ template <class T, class S, int (*index)(int, int) = row_index>
                                               const T* Tt, const T* C0, const T* C1, const T* C2,
                                               const T* Dp, const S* last, bool full) {
   static_assert(fours_side_by_side<index>(), "rows of four pixels side by side");
-  using B = std::conditional_t<sizeof(T) == 4, int32_t, int64_t>;  // T's bits
+  static_assert(sizeof(S) == sizeof(T), "S: the integer of T's width");
   typedef T V4 __attribute__((vector_size(4 * sizeof(T))));
   typedef S I4 __attribute__((vector_size(4 * sizeof(S))));
-  typedef B B4 __attribute__((vector_size(4 * sizeof(T))));
-  const B4 no_sign = B4{} + std::numeric_limits<B>::max();
+  const I4 no_sign = I4{} + std::numeric_limits<S>::max();
   const int W = out.color.width, H = out.color.height;
   const int w = std::min(kTS, W - ox);
   for (int r = 0; r < kTS && oy + r < H; ++r) {
@@ -347,7 +345,7 @@ template <class T, class S, int (*index)(int, int) = row_index>
     for (; c + 4 <= w; c += 4) {
       const int p = index(c, r);
       const size_t pix = row + size_t(c);
-      const V4 Tf = (V4)((B4)vload<V4>(Tt + p) & no_sign);
+      const V4 Tf = (V4)((I4)vload<V4>(Tt + p) & no_sign);
       const V4 r0 = vload<V4>(C0 + p) + Tf * bg[0], r1 = vload<V4>(C1 + p) + Tf * bg[1],
                r2 = vload<V4>(C2 + p) + Tf * bg[2];
       const V4 t0 = __builtin_shufflevector(r0, r1, 0, 4, 1, 5);
