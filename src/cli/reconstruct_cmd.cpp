@@ -153,6 +153,9 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--triplane-res", args->opt.decoder.triplane_res, "Triplane resolution")
       ->capture_default_str();
+  sub->add_option("--triplane-channels", args->opt.decoder.triplane_channels,
+                  "Feature channels of each triplane plane (the decoders read 3x this many)")
+      ->capture_default_str();
   sub->add_option("--hidden", args->opt.decoder.hidden, "Hidden width of the decoder MLPs")
       ->capture_default_str();
   sub->add_option("--max-offset", args->opt.decoder.max_offset,

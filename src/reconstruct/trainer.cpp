@@ -37,6 +37,12 @@ void check_options(const std::vector<LoadedFrame>& frames, const TrainOptions& o
     throw Error("reconstruct: the fine frames must be the same frames as the coarse ones");
   if (opt.subdivide < 0 || opt.subdivide > 4)
     throw Error("reconstruct: --subdivide must be in [0, 4]");
+  const DecoderOptions& d = opt.decoder;
+  if (d.triplane_res < 2 || d.triplane_res > 4096)
+    throw Error("reconstruct: --triplane-res must be in [2, 4096]");
+  if (d.triplane_channels < 1 || d.triplane_channels > 256)
+    throw Error("reconstruct: --triplane-channels must be in [1, 256]");
+  if (d.hidden < 1 || d.hidden > 1024) throw Error("reconstruct: --hidden must be in [1, 1024]");
   const VisibilityOptions& v = opt.visibility;
   if (!(v.start >= 0.f && v.start <= 1.f))
     throw Error("reconstruct: --visibility-start must be in [0, 1]");

@@ -130,6 +130,16 @@ TEST(ReconstructCli, TrainsSavesAndEvaluates) {
       EXPECT_FALSE(fs::exists(av4)) << bad;
     }
   }
+  // Decoder sizes out of range are refused with the flag's name; nothing is written.
+  for (const char* bad : {" --triplane-res 1", " --triplane-channels 0", " --hidden 0"}) {
+    const std::string av6 = (dir / "size.ksavatar").string();
+    test::CliRun r6 = run_cli("reconstruct " + (dir / "data").string() + " --out " + av6 +
+                              " --iters 1 --subdivide 0" + bad);
+    EXPECT_EQ(r6.status, 1) << bad;
+    const std::string flag = std::string(bad).substr(1, std::string(bad).find(' ', 1) - 1);
+    EXPECT_NE(r6.output.find(flag + " must be"), std::string::npos) << r6.output;
+    EXPECT_FALSE(fs::exists(av6)) << bad;
+  }
   // Options that would be ignored in the combination given are refused; nothing is written.
   for (const char* bad : {" --eval-out m.json", " --eval-scale 0.5", " --fine-scale 0.5",
                           " --garment none --garment-hem 0.5", " --skin-from 0.5"}) {
