@@ -156,6 +156,9 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   sub->add_option("--triplane-channels", args->opt.decoder.triplane_channels,
                   "Feature channels of each triplane plane (the decoders read 3x this many)")
       ->capture_default_str();
+  sub->add_option("--joint-decoder", args->opt.decoder.joint,
+                  "One decoder MLP for geometry and colour instead of two")
+      ->capture_default_str();
   sub->add_option("--hidden", args->opt.decoder.hidden, "Hidden width of the decoder MLPs")
       ->capture_default_str();
   sub->add_option("--max-offset", args->opt.decoder.max_offset,

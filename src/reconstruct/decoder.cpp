@@ -20,14 +20,20 @@ void Decoder::init(const DecoderOptions& o, uint64_t seed, const Eigen::MatrixXd
   sdim_ = o.isotropic ? 1 : 3;
   geo_out_ = 3 + sdim_ + 4 + 1;
   const int F = tp_.feature_dim();
-  geo_.init({F, o.hidden, o.hidden, geo_out_}, seed * 3 + 2, 0.01f);
-  app_.init({F, o.hidden, o.hidden, 3}, seed * 3 + 3, 0.01f);
+  joint_ = o.joint;
+  // Joint: one MLP whose last three outputs are the colour (the appearance MLP stays empty).
+  geo_.init({F, o.hidden, o.hidden, geo_out_ + (joint_ ? 3 : 0)}, seed * 3 + 2, 0.01f);
+  if (joint_)
+    app_ = Mlp{};
+  else
+    app_.init({F, o.hidden, o.hidden, 3}, seed * 3 + 3, 0.01f);
   base_log_scale_ = float(std::log(o.scale_factor * mean_face_edge_length(anchors, faces)));
   init_opacity_logit_ = std::log(o.init_opacity / (1.f - o.init_opacity));
   filter_var_ = filter_var;
   for (int k = 0; k < 3; ++k) sh_init_[k] = sh_init[k];
   geo_.pack(geo_params_);
-  app_.pack(app_params_);
+  app_params_.clear();
+  if (!joint_) app_.pack(app_params_);
   dplanes_.assign(tp_.size(), 0.f);
   touched_.assign(tp_.size() / size_t(tp_.channels), 0);
   touched_ranges_.clear();
@@ -42,6 +48,10 @@ void Decoder::init(const DecoderOptions& o, uint64_t seed, const Eigen::MatrixXd
 
 void Decoder::add_parameters(Adam& adam, const OptimizerOptions& lr) {
   adam.add_group("triplane", &tp_.planes, &dplanes_, lr.lr_triplane, &touched_ranges_);
+  if (joint_) {
+    adam.add_group("decoder_mlp", &geo_params_, &geo_grad_, lr.lr_mlp);
+    return;
+  }
   adam.add_group("geometry_mlp", &geo_params_, &geo_grad_, lr.lr_mlp);
   adam.add_group("appearance_mlp", &app_params_, &app_grad_, lr.lr_mlp);
 }
@@ -51,7 +61,7 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
                      const std::vector<float>& log_scale_bias, Gaussians& g,
                      std::vector<float>& offsets, const std::vector<int>* subset) {
   geo_.unpack(geo_params_);
-  app_.unpack(app_params_);
+  if (!joint_) app_.unpack(app_params_);
   const int n = int(anchors.rows());
   const int F = tp_.feature_dim();
   if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_) {
@@ -84,7 +94,11 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
   triplane_forward(tp_, px, py, pz, m, feats_.data());
   Eigen::Map<const Mlp::Mat> X(feats_.data(), F, m);
   // Both MLPs read the features, which stay in feats_ until the backward: no copy in the caches.
-  mlp_forward_pair(geo_, app_, X, geo_cache_, Yg_, app_cache_, Ya_);
+  if (joint_)
+    mlp_forward(geo_, X, geo_cache_, Yg_, false);
+  else
+    mlp_forward_pair(geo_, app_, X, geo_cache_, Yg_, app_cache_, Ya_);
+  const int gs = geo_.out_dim();  // a point's outputs in Yg_
   // The outputs go to the last decode's Gaussians (a subset replaces only its own), which are
   // then copied out, so that what the caller's components add to `g` never accumulates.
   last_.sh_degree = 0;
@@ -100,7 +114,7 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
 #pragma omp parallel for schedule(static)
   for (int j = 0; j < m; ++j) {
     const size_t i = size_t(sub ? sub[j] : j);
-    const float* y = Yg_.data() + size_t(j) * geo_out_;
+    const float* y = Yg_.data() + size_t(j) * gs;
     for (int k = 0; k < 3; ++k) {
       const float t = std::tanh(y[k]);
       tanh_off_[3 * size_t(j) + k] = t;
@@ -113,7 +127,7 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
     o.quats[4 * i] = 1.f + y[3 + sdim];
     for (int k = 1; k < 4; ++k) o.quats[4 * i + k] = y[3 + sdim + k];
     o.opacity_logits[i] = init_opacity_logit_ + y[7 + sdim];
-    const float* a = Ya_.data() + size_t(j) * 3;
+    const float* a = joint_ ? y + geo_out_ : Ya_.data() + size_t(j) * 3;
     for (int k = 0; k < 3; ++k) o.sh[3 * i + k] = sh_init_[k] + a[k];
   }
   g = last_;
@@ -130,12 +144,13 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
   const int* sub = subset_.empty() ? nullptr : subset_.data();
   const int sdim = sdim_;
   const float max_offset = opt_.max_offset;
-  dYg_.resize(geo_out_, m);
-  dYa_.resize(3, m);
+  const int gs = geo_.out_dim();
+  dYg_.resize(gs, m);
+  if (!joint_) dYa_.resize(3, m);
 #pragma omp parallel for schedule(static)
   for (int j = 0; j < m; ++j) {
     const size_t i = size_t(sub ? sub[j] : j);
-    float* y = dYg_.data() + size_t(j) * geo_out_;
+    float* y = dYg_.data() + size_t(j) * gs;
     const float* sr = &scale_ratio_[3 * size_t(j)];
     for (int k = 0; k < 3; ++k) {
       const float t = tanh_off_[3 * size_t(j) + k];
@@ -147,14 +162,19 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
       for (int k = 0; k < 3; ++k) y[3 + k] = dls[3 * i + k] * sr[k];
     for (int k = 0; k < 4; ++k) y[3 + sdim + k] = dquats[4 * i + k];
     y[7 + sdim] = dopacity[i];
-    for (int k = 0; k < 3; ++k) dYa_(k, j) = dsh[3 * i + k];
+    float* a = joint_ ? y + geo_out_ : dYa_.data() + size_t(j) * 3;
+    for (int k = 0; k < 3; ++k) a[k] = dsh[3 * i + k];
   }
   ggeo_.zero_like(geo_);
-  gapp_.zero_like(app_);
-  // Both MLPs read the same features: the appearance MLP's input gradient is added to the
-  // geometry MLP's.
-  mlp_backward_pair(geo_, geo_cache_, dYg_, ggeo_, app_, app_cache_, dYa_, gapp_, dX_,
-                    feats_.data());
+  if (joint_) {
+    mlp_backward(geo_, geo_cache_, dYg_, ggeo_, &dX_, feats_.data());
+  } else {
+    gapp_.zero_like(app_);
+    // Both MLPs read the same features: the appearance MLP's input gradient is added to the
+    // geometry MLP's.
+    mlp_backward_pair(geo_, geo_cache_, dYg_, ggeo_, app_, app_cache_, dYa_, gapp_, dX_,
+                      feats_.data());
+  }
   // Only texels of the touched set are ever written (the points are the last decode's).
   if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_)
     throw Error("Decoder::backward: the points differ from the last decode's");
@@ -169,7 +189,7 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
   else
     triplane_backward(tp_, xs.data(), ys.data(), zs.data(), m, dX_.data(), dplanes_.data(), &bins_);
   ggeo_.pack(geo_grad_);
-  gapp_.pack(app_grad_);
+  if (!joint_) gapp_.pack(app_grad_);
 }
 
 }  // namespace ks

@@ -1,13 +1,14 @@
 #pragma once
 // The avatar fit's decoder (SIAvatar): a triplane sampled at every anchor, decoded by two small
-// MLPs into the canonical Gaussians, with the output activations
+// MLPs (or, with DecoderOptions::joint, one) into the canonical Gaussians, with the output
+// activations
 //   mean      = anchor + max_offset tanh(o)
 //   log_scale = filtered(base + o + per-vertex bias)   (one o per axis, or one shared: isotropic)
 //   quat      = (1, 0, 0, 0) + o
 //   opacity   = logit(init_opacity) + o
 //   sh0       = sh_init + o                            (appearance MLP)
-// Forward (decode) and backward side by side. Its three parameter groups ("triplane",
-// "geometry_mlp", "appearance_mlp") train with Adam (reconstruct/adam.hpp).
+// Forward (decode) and backward side by side. Its parameter groups ("triplane", "geometry_mlp",
+// "appearance_mlp"; joint: "triplane", "decoder_mlp") train with Adam (reconstruct/adam.hpp).
 #include <Eigen/Core>
 #include <cmath>
 #include <vector>
@@ -91,7 +92,8 @@ class Decoder {
   std::vector<float> last_offsets_;
   std::vector<int> subset_;
   std::vector<float> sub_xs_, sub_ys_, sub_zs_;
-  int sdim_ = 1, geo_out_ = 9;
+  int sdim_ = 1, geo_out_ = 9;  // geo_out_: the geometry outputs (the joint MLP adds colour)
+  bool joint_ = false;
 };
 
 }  // namespace ks

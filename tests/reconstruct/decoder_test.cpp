@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <numeric>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "core/error.hpp"
@@ -176,6 +177,81 @@ TEST(Decoder, VertexOrderDoesNotChangeTheGaussians) {
     EXPECT_GT(scale, 0);
     for (size_t k = 0; k < a.grads[q].size(); ++k)
       ASSERT_NEAR(a.grads[q][k], b.grads[q][k], 1e-5 * scale) << q << " " << k;
+  }
+}
+
+// The decoder's backward against central differences of its own decode, for the two MLPs and
+// the joint one: L = the decoded Gaussians and offsets weighted by fixed random upstream
+// gradients; every parameter group's eight largest entries (the loss summed in double from float
+// decodes: steps of 1e-4, small enough for the ReLUs' and tanh's curvature, with a 3 % tolerance
+// plus 1 % of the largest difference for float noise).
+TEST(Decoder, BackwardMatchesFiniteDifferencesSplitAndJoint) {
+  Fixture f;
+  const int n = int(f.anchors.rows());
+  const float sh0[3] = {0.1f, 0.2f, 0.3f};
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> U(-1.f, 1.f);
+  std::vector<float> dm(3 * size_t(n)), doff(dm.size()), dls(dm.size()), dq(4 * size_t(n)),
+      dop(static_cast<size_t>(n)), dsh(dm.size());
+  for (auto* v : {&dm, &doff, &dls, &dq, &dop, &dsh})
+    for (float& x : *v) x = U(rng);
+  for (const bool joint : {false, true}) {
+    DecoderOptions o = f.o;
+    o.joint = joint;
+    o.max_offset = 0.2f;
+    Decoder d;
+    d.init(o, 3, f.anchors, f.faces, 0.f, sh0);
+    Adam adam;
+    d.add_parameters(adam, OptimizerOptions{});
+    EXPECT_EQ(adam.has_group("decoder_mlp"), joint);
+    EXPECT_EQ(adam.has_group("appearance_mlp"), !joint);
+    auto loss = [&] {
+      Gaussians g;
+      std::vector<float> off;
+      d.decode(f.anchors, f.xs, f.ys, f.zs, f.bias, g, off);
+      double l = 0;
+      for (size_t k = 0; k < dm.size(); ++k)
+        l += double(dm[k]) * g.means[k] + double(doff[k]) * off[k] +
+             double(dls[k]) * g.log_scales[k] + double(dsh[k]) * g.sh[k];
+      for (size_t k = 0; k < dq.size(); ++k) l += double(dq[k]) * g.quats[k];
+      for (size_t k = 0; k < dop.size(); ++k) l += double(dop[k]) * g.opacity_logits[k];
+      return l;
+    };
+    // Larger last-layer weights than the init's, so that every output moves with the features.
+    std::vector<std::string> names;
+    for (const AdamGroup& g : adam.groups()) names.push_back(g.name);
+    for (const std::string& name : names)
+      if (name != "triplane")
+        for (float& v : *adam.group(name).params) v *= 3.f;
+    loss();
+    d.backward(f.xs, f.ys, f.zs, dm, doff, dls, dq, dop, dsh);
+    for (const std::string& name : names) {
+      AdamGroup& g = adam.group(name);
+      const std::vector<float> grad = *g.grads;
+      std::vector<size_t> idx(grad.size());
+      std::iota(idx.begin(), idx.end(), size_t(0));
+      std::partial_sort(idx.begin(), idx.begin() + 8, idx.end(),
+                        [&](size_t a, size_t b) { return std::abs(grad[a]) > std::abs(grad[b]); });
+      idx.resize(8);
+      std::vector<double> fd;
+      double largest = 0;
+      for (size_t i : idx) {
+        float& p = (*g.params)[i];
+        const float keep = p;
+        const float h = 1e-4f;
+        p = keep + h;
+        const double lp = loss();
+        p = keep - h;
+        const double lm = loss();
+        p = keep;
+        fd.push_back((lp - lm) / (2.0 * double(h)));
+        largest = std::max(largest, std::abs(fd.back()));
+      }
+      EXPECT_GT(largest, 1e-3) << g.name;
+      for (size_t q = 0; q < idx.size(); ++q)
+        EXPECT_NEAR(grad[idx[q]], fd[q], 0.03 * std::abs(fd[q]) + 0.01 * largest)
+            << (joint ? "joint " : "split ") << g.name << "[" << idx[q] << "]";
+    }
   }
 }
 

@@ -128,6 +128,49 @@ TEST(TrainStep, GradientMatchesFiniteDifferences) {
     check(trainer, fr, "geometry_mlp", {}, 1e-2, 0.05, ng - 9 * (hidden + 1));
     check(trainer, fr, "appearance_mlp", {}, 1e-2, 0.05, na - 3 * (hidden + 1));
   }
+  {
+    // The joint decoder (one MLP, colour in its last three outputs): its colour rows with every
+    // loss on, its offset rows with the regularisers alone. Its triplane gradient and hidden
+    // layers are checked in decoder_test through the decoder's own decode: here the largest
+    // texel entries' central differences at a step of 1e-2 overshoot by up to 2x (at 1e-3 they
+    // scatter around the analytic value within the float loss's rounding).
+    TrainOptions oj = opt;
+    oj.decoder.joint = true;
+    const int hidden = oj.decoder.hidden, outs = 9 + 3;
+    // The six entries of the output layer's rows [r0, r0 + 3) (weights column-major, then the
+    // biases: the last entries) with the largest gradient at the frame.
+    auto head_rows = [&](Trainer& trainer, const LoadedFrame& fr, int r0) {
+      trainer.evaluate(fr);
+      const std::vector<float>& grad = *trainer.optimizer().group("decoder_mlp").grads;
+      const size_t n = grad.size(), w0 = n - size_t(outs) * size_t(hidden + 1);
+      std::vector<size_t> idx;
+      for (int c = 0; c <= hidden; ++c)
+        for (int r = r0; r < r0 + 3; ++r) idx.push_back(w0 + size_t(c) * outs + size_t(r));
+      std::partial_sort(idx.begin(), idx.begin() + 6, idx.end(),
+                        [&](size_t a, size_t b) { return std::abs(grad[a]) > std::abs(grad[b]); });
+      idx.resize(6);
+      return idx;
+    };
+    {
+      Trainer trainer(model, ds, frames, oj);
+      EXPECT_FALSE(trainer.optimizer().has_group("appearance_mlp"));
+      for (int i = 0; i < 3; ++i) trainer.step();
+      const LoadedFrame& fr = frames[1];
+      check(trainer, fr, "decoder_mlp", head_rows(trainer, fr, 9), 1e-3);
+    }
+    {
+      TrainOptions o = oj;
+      o.loss.w_l1 = o.loss.w_ssim = o.loss.w_mask = 0.f;
+      o.loss.w_lap_color = 5.f;
+      o.optimizer.lr_mlp = 0.05f;
+      Trainer trainer(model, ds, frames, o);
+      for (int i = 0; i < 3; ++i) trainer.step();
+      const LoadedFrame& fr = frames[0];
+      const size_t n = trainer.optimizer().group("decoder_mlp").params->size();
+      check(trainer, fr, "decoder_mlp", {n - 12, n - 11, n - 10}, 1e-2);
+      check(trainer, fr, "decoder_mlp", head_rows(trainer, fr, 0), 1e-2);
+    }
+  }
 }
 
 }  // namespace
