@@ -93,7 +93,7 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
   feats_.resize(size_t(m) * F);
   triplane_forward(tp_, px, py, pz, m, feats_.data());
   Eigen::Map<const Mlp::Mat> X(feats_.data(), F, m);
-  // Both MLPs read the features, which stay in feats_ until the backward: no copy in the caches.
+  // The MLPs read the features, which stay in feats_ until the backward: no copy in the caches.
   if (joint_)
     mlp_forward(geo_, X, geo_cache_, Yg_, false);
   else

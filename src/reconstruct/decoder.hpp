@@ -6,7 +6,7 @@
 //   log_scale = filtered(base + o + per-vertex bias)   (one o per axis, or one shared: isotropic)
 //   quat      = (1, 0, 0, 0) + o
 //   opacity   = logit(init_opacity) + o
-//   sh0       = sh_init + o                            (appearance MLP)
+//   sh0       = sh_init + o                            (appearance MLP; joint: its last three)
 // Forward (decode) and backward side by side. Its parameter groups ("triplane", "geometry_mlp",
 // "appearance_mlp"; joint: "triplane", "decoder_mlp") train with Adam (reconstruct/adam.hpp).
 #include <Eigen/Core>

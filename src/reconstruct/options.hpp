@@ -20,7 +20,7 @@ class DensityControl;
 // rotation, opacity; appearance: SH0 colour), and the output activations.
 struct DecoderOptions {
   int triplane_res = 512, triplane_channels = 32;
-  int hidden = 32;  // width of both MLPs' two hidden layers
+  int hidden = 32;  // width of the MLPs' two hidden layers
   // One MLP decodes geometry and colour (SIAvatar's single D_mlp; group "decoder_mlp") instead
   // of two (groups "geometry_mlp" and "appearance_mlp").
   bool joint = false;

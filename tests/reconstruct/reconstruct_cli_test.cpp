@@ -72,11 +72,17 @@ TEST(ReconstructCli, TrainsSavesAndEvaluates) {
   write_tiny_dataset((dir / "data").string());
   const std::string av = (dir / "a.ksavatar").string();
   test::CliRun r = run_cli("reconstruct " + (dir / "data").string() + " --out " + av +
-                           " --iters 4 --subdivide 0 --scale 1 --triplane-res 16 --hidden 8 -q");
+                           " --iters 4 --subdivide 0 --scale 1 --triplane-res 16 --hidden 8"
+                           " --triplane-channels 4 --joint-decoder 1 -q");
   ASSERT_EQ(r.status, 0) << r.output;
   ASSERT_TRUE(fs::exists(av));
   const Avatar a = load_avatar(av);
   EXPECT_EQ(a.num_gaussians(), default_body_model().num_vertices());
+  // The decoder's sizes are recorded with the avatar.
+  EXPECT_EQ(a.metadata.value("triplane_res", -1), 16);
+  EXPECT_EQ(a.metadata.value("triplane_channels", -1), 4);
+  EXPECT_EQ(a.metadata.value("hidden", -1), 8);
+  EXPECT_TRUE(a.metadata.value("joint_decoder", false));
   // Every step at --scale by default (no coarse-to-fine phase: it starts after the last step).
   EXPECT_EQ(a.metadata.value("fine_from_iteration", -1), 4);
   EXPECT_EQ(a.metadata.value("subdivide", -1), 0);
