@@ -49,6 +49,24 @@ struct Fixture {
   }
 };
 
+// Upstream gradients of n decoded Gaussians and their offsets, uniform in [-1, 1].
+struct Upstream {
+  std::vector<float> dm, doff, dls, dq, dop,
+      dsh;  // means, offsets, log-scales, quats, opacity, SH0
+  Upstream(int n, unsigned seed)
+      : dm(3 * size_t(n)),
+        doff(dm.size()),
+        dls(dm.size()),
+        dq(4 * size_t(n)),
+        dop(size_t(n)),
+        dsh(dm.size()) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> U(-1.f, 1.f);
+    for (auto* v : {&dm, &doff, &dls, &dq, &dop, &dsh})
+      for (float& x : *v) x = U(rng);
+  }
+};
+
 TEST(Decoder, SubsetDecodesAndBackpropagatesOnlyItsGaussians) {
   Fixture f;
   const int n = int(f.anchors.rows());
@@ -128,12 +146,9 @@ TEST(Decoder, VertexOrderDoesNotChangeTheGaussians) {
   for (long r = 0; r < g.faces.rows(); ++r)
     for (int c = 0; c < 3; ++c) g.faces(r, c) = inv[size_t(f.faces(r, c))];
   const float sh0[3] = {0.1f, 0.2f, 0.3f};
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<float> U(-1.f, 1.f);
-  std::vector<float> dm(3 * size_t(n)), doff(dm.size()), dls(dm.size()), dq(4 * size_t(n)),
-      dop(static_cast<size_t>(n)), dsh(dm.size());
-  for (auto* v : {&dm, &doff, &dls, &dq, &dop, &dsh})
-    for (float& x : *v) x = U(rng);
+  const Upstream u(n, 5);
+  const std::vector<float>&dm = u.dm, &doff = u.doff, &dls = u.dls, &dq = u.dq, &dop = u.dop,
+        &dsh = u.dsh;
   auto renumber = [&](const std::vector<float>& v, int dim) {
     std::vector<float> r(v.size());
     for (int k = 0; k < n; ++k)
@@ -189,12 +204,9 @@ TEST(Decoder, BackwardMatchesFiniteDifferencesSplitAndJoint) {
   Fixture f;
   const int n = int(f.anchors.rows());
   const float sh0[3] = {0.1f, 0.2f, 0.3f};
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> U(-1.f, 1.f);
-  std::vector<float> dm(3 * size_t(n)), doff(dm.size()), dls(dm.size()), dq(4 * size_t(n)),
-      dop(static_cast<size_t>(n)), dsh(dm.size());
-  for (auto* v : {&dm, &doff, &dls, &dq, &dop, &dsh})
-    for (float& x : *v) x = U(rng);
+  const Upstream u(n, 7);
+  const std::vector<float>&dm = u.dm, &doff = u.doff, &dls = u.dls, &dq = u.dq, &dop = u.dop,
+        &dsh = u.dsh;
   for (const bool joint : {false, true}) {
     DecoderOptions o = f.o;
     o.joint = joint;
