@@ -16,6 +16,7 @@
 #include "reconstruct/adam.hpp"
 #include "reconstruct/losses.hpp"
 #include "reconstruct/triplane.hpp"
+#include "reconstruct/triplane_kernels.hpp"
 
 namespace {
 
@@ -78,9 +79,20 @@ struct TriplaneFixture {
   }
 };
 
-// Args: ordered, threads.
+// The lookup loops: 0 = the portable ones, 1 = the AVX2+FMA ones where the CPU has them (as a
+// fit runs; triplane_kernels.hpp).
+struct TriplanePath {
+  explicit TriplanePath(int64_t avx2) {
+    ks::triplane_kernels::set_path(avx2 ? ks::triplane_kernels::Path::kAuto
+                                        : ks::triplane_kernels::Path::kPortable);
+  }
+  ~TriplanePath() { ks::triplane_kernels::set_path(ks::triplane_kernels::Path::kAuto); }
+};
+
+// Args: ordered, threads, avx2.
 void BM_TriplaneForward(benchmark::State& st) {
   TriplaneFixture f(st.range(0) != 0);
+  const TriplanePath path(st.range(2));
   const int n = f.n;
   const int saved = omp_get_max_threads();
   omp_set_num_threads(int(st.range(1)));
@@ -92,9 +104,10 @@ void BM_TriplaneForward(benchmark::State& st) {
 }
 
 // Zero the plane gradient, then accumulate, with the points' bins made once outside the loop (as
-// the decoder does for its fixed anchors). Args: ordered, threads.
+// the decoder does for its fixed anchors). Args: ordered, threads, avx2.
 void BM_TriplaneBackward(benchmark::State& st) {
   TriplaneFixture f(st.range(0) != 0);
+  const TriplanePath path(st.range(2));
   const int n = f.n;
   const int saved = omp_get_max_threads();
   omp_set_num_threads(int(st.range(1)));
@@ -175,13 +188,13 @@ BENCHMARK(BM_AdamStep)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_TriplaneForward)
-    ->ArgsProduct({{0, 1}, {1, 2}})
-    ->ArgNames({"ordered", "threads"})
+    ->ArgsProduct({{0, 1}, {1, 2}, {0, 1}})
+    ->ArgNames({"ordered", "threads", "avx2"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_TriplaneBackward)
-    ->ArgsProduct({{0, 1}, {1, 2}})
-    ->ArgNames({"ordered", "threads"})
+    ->ArgsProduct({{0, 1}, {1, 2}, {0, 1}})
+    ->ArgNames({"ordered", "threads", "avx2"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK_MAIN();

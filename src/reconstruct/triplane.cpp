@@ -3,54 +3,16 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <type_traits>
 #include <vector>
 
 #include "core/error.hpp"
+#include "reconstruct/triplane_kernels.hpp"
 
 namespace ks {
 
-namespace {
-
-template <typename T>
-struct Bilinear {
-  int i00;  // index of the (u0, v0) texel (in texels, times channels later)
-  int du, dv;
-  T w00, w10, w01, w11;
-};
-
-template <typename T>
-inline Bilinear<T> bilinear(T a, T b, T lo_a, T hi_a, T lo_b, T hi_b, int res) {
-  const T sa = (a - lo_a) / (hi_a - lo_a) * T(res - 1);
-  const T sb = (b - lo_b) / (hi_b - lo_b) * T(res - 1);
-  const T ca = std::clamp(sa, T(0), T(res - 1));
-  const T cb = std::clamp(sb, T(0), T(res - 1));
-  int u0 = std::min(int(ca), res - 2);
-  int v0 = std::min(int(cb), res - 2);
-  const T fu = ca - T(u0), fv = cb - T(v0);
-  Bilinear<T> r;
-  r.i00 = v0 * res + u0;
-  r.du = 1;
-  r.dv = res;
-  r.w00 = (1 - fu) * (1 - fv);
-  r.w10 = fu * (1 - fv);
-  r.w01 = (1 - fu) * fv;
-  r.w11 = fu * fv;
-  return r;
-}
-
-template <typename T>
-inline Bilinear<T> lookup(const TriplaneT<T>& tp, int plane, T x, T y, T z) {
-  switch (plane) {
-    case 0:
-      return bilinear(x, y, tp.lo[0], tp.hi[0], tp.lo[1], tp.hi[1], tp.res);
-    case 1:
-      return bilinear(x, z, tp.lo[0], tp.hi[0], tp.lo[2], tp.hi[2], tp.res);
-    default:
-      return bilinear(y, z, tp.lo[1], tp.hi[1], tp.lo[2], tp.hi[2], tp.res);
-  }
-}
-
-}  // namespace
+using triplane_kernels::Bilinear;
+using triplane_kernels::lookup;
 
 template <typename T>
 void TriplaneT<T>::init(int r, int c, const T box_lo[3], const T box_hi[3], uint64_t seed,
@@ -69,6 +31,18 @@ void triplane_forward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T*
                       T* feats) {
   const int C = tp.channels;
   const int F = 3 * C;
+  if constexpr (std::is_same_v<T, float>) {
+    if (triplane_kernels::use_avx2(C)) {
+      constexpr int kChunk = 2048;
+      const int chunks = (n + kChunk - 1) / kChunk;
+      // Dynamic: a lookup's cost is its cache misses, which vary along the points.
+#pragma omp parallel for schedule(dynamic, 1) if (chunks > 1)
+      for (int c = 0; c < chunks; ++c)
+        triplane_kernels::forward_range_avx2(tp, xs, ys, zs, c * kChunk,
+                                             std::min(n, (c + 1) * kChunk), feats);
+      return;
+    }
+  }
   // Dynamic: a lookup's cost is its cache misses, which vary along the points.
 #pragma omp parallel for schedule(dynamic, 2048) if (n > 1024)
   for (int i = 0; i < n; ++i) {
@@ -128,6 +102,7 @@ void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T
     throw Error("triplane_backward: the bins are of other points or another plane size");
   const int stripes = bins->stripes;
   constexpr int kAhead = 8;
+  const bool avx2 = std::is_same_v<T, float> && triplane_kernels::use_avx2(C);
   for (int parity = 0; parity < 2; ++parity) {
     const int per_plane = (stripes + 1 - parity) / 2;
 #pragma omp parallel for schedule(dynamic, 1) if (n > 1024)
@@ -138,6 +113,13 @@ void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T
       const int* ord = bins->order.data() + size_t(p) * n;
       T* base = dplanes + p * tp.plane_size();
       const int end = st[s + 1];
+      if constexpr (std::is_same_v<T, float>) {
+        if (avx2) {
+          triplane_kernels::backward_run_avx2(tp, p, xs, ys, zs, ord, st[s], end, dfeats, base,
+                                              kAhead);
+          continue;
+        }
+      }
       for (int k = st[s]; k < end; ++k) {
         const int i = ord[k];
         // The point gradients are read out of order: fetch a later point's ahead of its turn.

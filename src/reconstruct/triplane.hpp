@@ -4,6 +4,9 @@
 // of its bilinear lookups in the three planes (XY, XZ, YZ order): 3C values (SIAvatar, eq. F_tri).
 // Points outside the box are clamped to its border. Forward/backward for batches of points;
 // gradients w.r.t. the planes only (anchors are fixed; positions move through decoded offsets).
+// Float planes whose channel count is a multiple of 8 take AVX2+FMA loops when the CPU has them
+// (triplane_kernels.hpp; KS_TRIPLANE_NO_AVX2=1 turns them off); the results then differ from the
+// portable loops by float rounding only; either path gives the same results on any thread count.
 #include <cstddef>
 #include <cstdint>
 #include <utility>
