@@ -49,11 +49,8 @@ void triplane_forward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T*
     T* out = feats + size_t(i) * F;
     for (int p = 0; p < 3; ++p) {
       const Bilinear<T> b = lookup(tp, p, xs[i], ys[i], zs[i]);
-      const T* base = tp.planes.data() + p * tp.plane_size();
-      const T* t00 = base + size_t(b.i00) * C;
-      const T* t10 = t00 + size_t(b.du) * C;
-      const T* t01 = t00 + size_t(b.dv) * C;
-      const T* t11 = t01 + size_t(b.du) * C;
+      const auto [t00, t10, t01, t11] =
+          triplane_kernels::texels(tp.planes.data() + p * tp.plane_size(), b, C);
       T* o = out + p * C;
       for (int c = 0; c < C; ++c)
         o[c] = b.w00 * t00[c] + b.w10 * t10[c] + b.w01 * t01[c] + b.w11 * t11[c];
@@ -130,10 +127,7 @@ void triplane_backward(const TriplaneT<T>& tp, const T* xs, const T* ys, const T
         }
         const Bilinear<T> b = lookup(tp, p, xs[i], ys[i], zs[i]);
         const T* g = dfeats + size_t(i) * F + p * C;
-        T* t00 = base + size_t(b.i00) * C;
-        T* t10 = t00 + size_t(b.du) * C;
-        T* t01 = t00 + size_t(b.dv) * C;
-        T* t11 = t01 + size_t(b.du) * C;
+        const auto [t00, t10, t01, t11] = triplane_kernels::texels(base, b, C);
         for (int c = 0; c < C; ++c) {
           const T gc = g[c];
           t00[c] += b.w00 * gc;

@@ -43,10 +43,7 @@ void KS_AVX2 forward_range_avx2(const TriplaneT<float>& tp, const float* xs, con
     float* out = feats + size_t(i) * F;
     for (int p = 0; p < 3; ++p) {
       const Bilinear<float> b = lookup(tp, p, xs[i], ys[i], zs[i]);
-      const float* t00 = tp.planes.data() + p * tp.plane_size() + size_t(b.i00) * C;
-      const float* t10 = t00 + size_t(b.du) * C;
-      const float* t01 = t00 + size_t(b.dv) * C;
-      const float* t11 = t01 + size_t(b.du) * C;
+      const auto [t00, t10, t01, t11] = texels(tp.planes.data() + p * tp.plane_size(), b, C);
       const __m256 w00 = _mm256_set1_ps(b.w00), w10 = _mm256_set1_ps(b.w10);
       const __m256 w01 = _mm256_set1_ps(b.w01), w11 = _mm256_set1_ps(b.w11);
       float* o = out + p * C;
@@ -75,10 +72,7 @@ void KS_AVX2 backward_run_avx2(const TriplaneT<float>& tp, int p, const float* x
     }
     const Bilinear<float> b = lookup(tp, p, xs[i], ys[i], zs[i]);
     const float* g = dfeats + size_t(i) * F + p * C;
-    float* t00 = dplane + size_t(b.i00) * C;
-    float* t10 = t00 + size_t(b.du) * C;
-    float* t01 = t00 + size_t(b.dv) * C;
-    float* t11 = t01 + size_t(b.du) * C;
+    const auto [t00, t10, t01, t11] = texels(dplane, b, C);
     const __m256 w00 = _mm256_set1_ps(b.w00), w10 = _mm256_set1_ps(b.w10);
     const __m256 w01 = _mm256_set1_ps(b.w01), w11 = _mm256_set1_ps(b.w11);
     for (int c = 0; c < C; c += 8) {

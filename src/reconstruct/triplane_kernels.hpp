@@ -5,6 +5,7 @@
 // are chosen at run time, and differ from the portable loops by float rounding only (fused
 // multiply-adds).
 #include <algorithm>
+#include <cstddef>
 
 #include "reconstruct/triplane.hpp"
 
@@ -35,6 +36,21 @@ inline Bilinear<T> bilinear(T a, T b, T lo_a, T hi_a, T lo_b, T hi_b, int res) {
   r.w01 = (1 - fu) * fv;
   r.w11 = fu * fv;
   return r;
+}
+
+// A lookup's four texels in a plane (base: the plane's first entry; C channels a texel).
+template <typename P>
+struct Texels {
+  P t00, t10, t01, t11;
+};
+template <typename P, typename T>
+inline Texels<P> texels(P base, const Bilinear<T>& b, int C) {
+  Texels<P> q;
+  q.t00 = base + size_t(b.i00) * size_t(C);
+  q.t10 = q.t00 + size_t(b.du) * size_t(C);
+  q.t01 = q.t00 + size_t(b.dv) * size_t(C);
+  q.t11 = q.t01 + size_t(b.du) * size_t(C);
+  return q;
 }
 
 // Plane 0 = XY, 1 = XZ, 2 = YZ (triplane.hpp).
