@@ -1,9 +1,9 @@
 #pragma once
 // The triplane's per-point lookup (which texels, which bilinear weights) and its AVX2+FMA loops
-// for float planes whose channel count is a multiple of 8 (internal to reconstruct/triplane.cpp
-// and its tests). triplane_avx2.cpp compiles the loops with per-function target attributes; they
-// are chosen at run time, and differ from the portable loops by float rounding only (fused
-// multiply-adds).
+// for float planes whose channel count is a multiple of 8 (internal to reconstruct/triplane.cpp,
+// its tests and its benchmark). triplane_avx2.cpp compiles the loops with per-function target
+// attributes; they are chosen at run time, and differ from the portable loops by float rounding
+// only (fused multiply-adds).
 #include <algorithm>
 #include <cstddef>
 
