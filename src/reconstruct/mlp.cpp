@@ -155,19 +155,20 @@ struct ForwardJob {
   MlpT<float>::Mat* Y;
 };
 
-// The MLPs of `jobs` on one input X, a sub-block of points through each in turn (so that the
-// later ones read the sub-block's input from L1); each job's results are those of a forward of
-// its MLP alone.
-void forward_avx2(const ForwardJob* jobs, int count, const Eigen::Ref<const MlpT<float>::Mat>& X,
-                  bool keep_input) {
-  const Eigen::Index n = X.cols();
+// The MLPs of `jobs` on one input X (n points), a sub-block of points through each in turn (so
+// that the later ones read the sub-block's input from L1); each job's results are those of a
+// forward of its MLP alone. first > 0: only the layers from `first` on, each job's input being
+// its cache.act[first] (filled by the caller; X is then unused and the buffers already sized).
+void forward_avx2(const ForwardJob* jobs, int count, const Eigen::Ref<const MlpT<float>::Mat>* X,
+                  Eigen::Index n, bool keep_input, int first = 0) {
   // Caller-thread scratch, reused across calls; the OpenMP workers use it through this reference
   // (naming the thread_local inside the parallel region would give each worker its own copy).
   static thread_local std::vector<Packed> packed;
   std::vector<Packed>& pks = packed;
   if (int(pks.size()) < count) pks.resize(size_t(count));
   for (int q = 0; q < count; ++q) {
-    size_forward_buffers<float>(*jobs[q].m, X, keep_input, *jobs[q].cache, *jobs[q].Y);
+    if (first == 0)
+      size_forward_buffers<float>(*jobs[q].m, *X, keep_input, *jobs[q].cache, *jobs[q].Y);
     pks[size_t(q)].pack(*jobs[q].m, false);
   }
   const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
@@ -184,16 +185,16 @@ void forward_avx2(const ForwardJob* jobs, int count, const Eigen::Ref<const MlpT
         const size_t L = m.W.size();
         // The input is kept for the backward pass (unless the caller keeps it); copied here, a
         // sub-block at a time, so the first layer reads it from L1.
-        if (keep_input && X.outerStride() == X.rows())
-          std::memcpy(cache.act[0].data() + s0 * X.rows(), X.data() + s0 * X.rows(),
-                      sizeof(float) * size_t(len) * size_t(X.rows()));
-        else if (keep_input)
-          cache.act[0].middleCols(s0, len) = X.middleCols(s0, len);
-        for (size_t l = 0; l < L; ++l) {
+        if (first == 0 && keep_input && X->outerStride() == X->rows())
+          std::memcpy(cache.act[0].data() + s0 * X->rows(), X->data() + s0 * X->rows(),
+                      sizeof(float) * size_t(len) * size_t(X->rows()));
+        else if (first == 0 && keep_input)
+          cache.act[0].middleCols(s0, len) = X->middleCols(s0, len);
+        for (size_t l = size_t(first); l < L; ++l) {
           const int in = int(m.W[l].cols()), out = int(m.W[l].rows());
           const bool last = l + 1 == L;
           float* dst = last ? Y.data() + s0 * out : cache.act[l + 1].data() + s0 * out;
-          const float* src = l == 0 && !keep_input ? X.data() : cache.act[l].data();
+          const float* src = l == 0 && !keep_input ? X->data() : cache.act[l].data();
           mk::gemm_cols_avx2(pk.data.data() + pk.w[l], out, in, src + s0 * in, in, int(len), dst,
                              out, last ? mk::Epilogue::kBias : mk::Epilogue::kBiasRelu,
                              pk.data.data() + pk.b[l], nullptr, 0);
@@ -207,11 +208,20 @@ void forward_avx2(const ForwardJob* jobs, int count, const Eigen::Ref<const MlpT
 // gradients, whether it adds its input gradient to dX (else writes it), and the layout of its
 // per-block gradient partials (filled by backward_avx2).
 struct BackwardJob {
+  BackwardJob(const MlpT<float>* m_, const MlpCacheT<float>* cache_,
+              const Eigen::Ref<const MlpT<float>::Mat>* dY_, MlpGradsT<float>* g_, bool add_dx_)
+      : m(m_), cache(cache_), dY(dY_), g(g_), add_dx(add_dx_) {}
   const MlpT<float>* m;
   const MlpCacheT<float>* cache;
   const Eigen::Ref<const MlpT<float>::Mat>* dY;
   MlpGradsT<float>* g;
   bool add_dx;
+  // stop > 0: the layers from `stop` on only; the gradient of layer stop - 1's pre-activation
+  // output (after the ReLU's mask) goes to d0 (leading dim ld0), its row sums to that layer's
+  // bias gradient, and that layer's weight gradient stays zero.
+  int stop = 0;
+  float* d0 = nullptr;
+  std::ptrdiff_t ld0 = 0;
   // Layer l's dW partial at gw[l], db at gbo[l]; trans[l]: accumulated as dW^T.
   std::vector<size_t> gw, gbo;
   std::vector<char> trans;
@@ -278,7 +288,7 @@ void backward_avx2(BackwardJob* jobs, int count, MlpT<float>::Mat* dX, const flo
         // delta = dL/d(pre-activation output of layer l), leading dim ld.
         const float* delta = J.dY->data() + s0 * ldy;
         Eigen::Index ld = ldy;
-        for (int l = L - 1; l >= 0; --l) {
+        for (int l = L - 1; l >= J.stop; --l) {
           const int in = int(m.W[size_t(l)].cols()), out = int(m.W[size_t(l)].rows());
           const float* act = (l == 0 ? X0 : J.cache->act[size_t(l)].data()) + s0 * in;
           if (J.trans[size_t(l)]) {
@@ -289,15 +299,22 @@ void backward_avx2(BackwardJob* jobs, int count, MlpT<float>::Mat* dX, const flo
                                pb + J.gbo[size_t(l)]);
           }
           if (l == 0 && !dX) break;
-          float* dst = l > 0 ? scratch.data() + size_t(l % 2) * size_t(kSub) * size_t(maxdim)
-                             : dX->data() + s0 * in;
+          const bool to_d0 = J.stop > 0 && l == J.stop;
+          float* dst = to_d0   ? J.d0 + s0 * J.ld0
+                       : l > 0 ? scratch.data() + size_t(l % 2) * size_t(kSub) * size_t(maxdim)
+                               : dX->data() + s0 * in;
+          const Eigen::Index ldd = to_d0 ? J.ld0 : in;
           // l > 0: ReLU backward, the gradient passes where the layer's output act > 0.
           mk::gemm_cols_avx2(
-              pk.data.data() + pk.w[size_t(l)], in, out, delta, ld, len, dst, in,
+              pk.data.data() + pk.w[size_t(l)], in, out, delta, ld, len, dst, ldd,
               l > 0 ? mk::Epilogue::kMask : (J.add_dx ? mk::Epilogue::kAdd : mk::Epilogue::kNone),
               nullptr, l > 0 ? act : nullptr, in);
+          if (to_d0) {
+            mk::rowsum_acc_avx2(dst, ldd, in, len, pb + J.gbo[size_t(l - 1)]);
+            break;
+          }
           delta = dst;
-          ld = in;
+          ld = ldd;
         }
       }
     }
@@ -335,7 +352,7 @@ void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>
   if constexpr (std::is_same_v<T, float>) {
     if (mk::use_avx2()) {
       const ForwardJob job{&m, &cache, &Y};
-      forward_avx2(&job, 1, X, keep_input);
+      forward_avx2(&job, 1, &X, X.cols(), keep_input);
       return;
     }
   }
@@ -379,7 +396,7 @@ void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
     throw Error("mlp_backward: the gradient to add to has the wrong shape");
   if constexpr (std::is_same_v<T, float>) {
     if (mk::use_avx2()) {
-      BackwardJob job{&m, &cache, &dY, &g, add_dx, {}, {}, {}, 0};
+      BackwardJob job(&m, &cache, &dY, &g, add_dx);
       backward_avx2(&job, 1, dX, X0);
       return;
     }
@@ -470,7 +487,7 @@ void mlp_forward_pair(const MlpT<T>& a, const MlpT<T>& b,
   if constexpr (std::is_same_v<T, float>) {
     if (mk::use_avx2()) {
       const ForwardJob jobs[2] = {{&a, &cache_a, &Ya}, {&b, &cache_b, &Yb}};
-      forward_avx2(jobs, 2, X, false);
+      forward_avx2(jobs, 2, &X, X.cols(), false);
       return;
     }
   }
@@ -491,14 +508,53 @@ void mlp_backward_pair(const MlpT<T>& a, const MlpCacheT<T>& cache_a,
         throw Error("mlp_backward_pair: a cache is not from a forward pass of its MLP");
       if (!X || dYa.cols() != dYb.cols() || a.W[0].cols() != b.W[0].cols())
         throw Error("mlp_backward_pair: the two MLPs do not share one input");
-      BackwardJob jobs[2] = {{&a, &cache_a, &dYa, &ga, false, {}, {}, {}, 0},
-                             {&b, &cache_b, &dYb, &gb, true, {}, {}, {}, 0}};
+      BackwardJob jobs[2] = {BackwardJob(&a, &cache_a, &dYa, &ga, false),
+                             BackwardJob(&b, &cache_b, &dYb, &gb, true)};
       backward_avx2(jobs, 2, &dX, X);
       return;
     }
   }
   mlp_backward(a, cache_a, dYa, ga, &dX, X);
   mlp_backward(b, cache_b, dYb, gb, &dX, X, true);
+}
+
+void mlp_tail_buffers(const Mlp& m, Eigen::Index n, MlpCache& cache, Mlp::Mat& Y) {
+  const size_t L = m.W.size();
+  if (L < 2) throw Error("mlp_tail_buffers: the MLP has one layer, no tail");
+  cache.act.resize(L);
+  cache.act[0].resize(m.W[0].cols(), 0);
+  for (size_t l = 1; l < L; ++l) cache.act[l].resize(m.W[l - 1].rows(), n);
+  Y.resize(m.W[L - 1].rows(), n);
+}
+
+void mlp_forward_tail(const Mlp* const* m, MlpCache* const* cache, Mlp::Mat* const* Y, int count) {
+  if (!mk::use_avx2()) throw Error("mlp_forward_tail: needs the AVX2 kernels");
+  std::vector<ForwardJob> jobs;
+  for (int q = 0; q < count; ++q) {
+    if (m[q]->W.size() < 2 || cache[q]->act.size() != m[q]->W.size() ||
+        cache[q]->act[1].cols() != Y[q]->cols())
+      throw Error("mlp_forward_tail: buffers not sized by mlp_tail_buffers for this MLP");
+    jobs.push_back({m[q], cache[q], Y[q]});
+  }
+  if (count > 0) forward_avx2(jobs.data(), count, nullptr, Y[0]->cols(), false, 1);
+}
+
+void mlp_backward_tail(const Mlp* const* m, const MlpCache* const* cache, const Mlp::Mat* const* dY,
+                       MlpGrads* const* g, float* const* d0, std::ptrdiff_t ld0, int count) {
+  if (!mk::use_avx2()) throw Error("mlp_backward_tail: needs the AVX2 kernels");
+  std::vector<Eigen::Ref<const Mlp::Mat>> refs;
+  refs.reserve(size_t(count));
+  std::vector<BackwardJob> jobs;
+  for (int q = 0; q < count; ++q) {
+    if (m[q]->W.size() < 2 || cache[q]->act.size() != m[q]->W.size() ||
+        cache[q]->act[1].cols() != dY[q]->cols())
+      throw Error("mlp_backward_tail: the cache is not from mlp_forward_tail of this MLP");
+    refs.emplace_back(*dY[q]);
+    BackwardJob J(m[q], cache[q], &refs.back(), g[q], false);
+    J.stop = 1, J.d0 = d0[q], J.ld0 = ld0;
+    jobs.push_back(J);
+  }
+  if (count > 0) backward_avx2(jobs.data(), count, nullptr, nullptr);
 }
 
 template void mlp_forward(const MlpT<float>&, const Eigen::Ref<const MlpT<float>::Mat>&,

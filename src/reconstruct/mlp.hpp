@@ -83,4 +83,19 @@ using Mlp = MlpT<float>;
 using MlpCache = MlpCacheT<float>;
 using MlpGrads = MlpGradsT<float>;
 
+// The layers after the first of `count` float MLPs (of two layers or more), for a caller that
+// computes their first layers itself (the decoder, in texel space: reconstruct/texel_layer0.hpp).
+// AVX2 kernels only: throws ks::Error unless mlp_kernels::use_avx2().
+// mlp_tail_buffers sizes a cache (act[0] empty) and Y for n points; the caller then writes the
+// first layer's output after its ReLU to each cache's act[1], and mlp_forward_tail runs the
+// layers from the second on: the results of mlp_forward from that act[1] on.
+void mlp_tail_buffers(const Mlp& m, Eigen::Index n, MlpCache& cache, Mlp::Mat& Y);
+void mlp_forward_tail(const Mlp* const* m, MlpCache* const* cache, Mlp::Mat* const* Y, int count);
+// Their backward from dY (out x n each) to the first layer's output: the gradients of the later
+// layers and of the first layer's bias accumulate into g as in mlp_backward (the first layer's
+// weight gradient is left as it is), and the gradient of the first layer's pre-activation output
+// (hidden x n, the ReLU's mask applied) is written to d0[q], leading dim ld0.
+void mlp_backward_tail(const Mlp* const* m, const MlpCache* const* cache, const Mlp::Mat* const* dY,
+                       MlpGrads* const* g, float* const* d0, std::ptrdiff_t ld0, int count);
+
 }  // namespace ks

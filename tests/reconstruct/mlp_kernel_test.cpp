@@ -320,5 +320,73 @@ TEST(MlpKernels, EmptyBatch) {
   }
 }
 
+// The layers after the first (mlp_forward_tail / mlp_backward_tail, for a first layer computed
+// elsewhere) of two MLPs whose first-layer gradients share one buffer: the outputs and the later
+// layers' gradients of the whole MLPs, bit for bit, the first layer's bias gradient too, its
+// weight gradient left alone; and d0 X^T is the whole backward's first-layer weight gradient.
+TEST(MlpKernels, TailMatchesTheWholeMlps) {
+  SKIP_WITHOUT_AVX2();
+  PathGuard guard(mk::Path::kAvx2);
+  const int n = 150, in = 24;
+  std::mt19937_64 rng(31);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  Mlp a, b;
+  a.init({in, 16, 16, 9}, 1, 0.5f);
+  b.init({in, 8, 8, 3}, 2, 0.5f);
+  for (Mlp* m : {&a, &b})
+    for (auto& bias : m->b)
+      for (int i = 0; i < bias.size(); ++i) bias(i) = 0.1f * u(rng);
+  Mlp::Mat X(in, n), dYa(9, n), dYb(3, n);
+  fill_uniform(X, u, rng);
+  fill_uniform(dYa, u, rng);
+  fill_uniform(dYb, u, rng);
+  MlpCache ca, cb;
+  Mlp::Mat Ya, Yb;
+  mlp_forward(a, X, ca, Ya);
+  mlp_forward(b, X, cb, Yb);
+  MlpGrads ga, gb;
+  ga.zero_like(a), gb.zero_like(b);
+  mlp_backward(a, ca, dYa, ga, nullptr);
+  mlp_backward(b, cb, dYb, gb, nullptr);
+  // The tails, from the whole forwards' first-layer outputs.
+  MlpCache ta, tb;
+  Mlp::Mat Ta, Tb;
+  mlp_tail_buffers(a, n, ta, Ta);
+  mlp_tail_buffers(b, n, tb, Tb);
+  ta.act[1] = ca.act[1], tb.act[1] = cb.act[1];
+  const Mlp* ms[2] = {&a, &b};
+  MlpCache* cs[2] = {&ta, &tb};
+  Mlp::Mat* Ys[2] = {&Ta, &Tb};
+  mlp_forward_tail(ms, cs, Ys, 2);
+  EXPECT_EQ(Ta, Ya);
+  EXPECT_EQ(Tb, Yb);
+  MlpGrads ha, hb;
+  ha.zero_like(a), hb.zero_like(b);
+  const int H = 24;  // 16 + 8 rows of d0 a point
+  std::vector<float> d0(size_t(H) * n, 7.f);
+  const MlpCache* ccs[2] = {&ta, &tb};
+  const Mlp::Mat* dYs[2] = {&dYa, &dYb};
+  MlpGrads* gs[2] = {&ha, &hb};
+  float* d0s[2] = {d0.data(), d0.data() + 16};
+  mlp_backward_tail(ms, ccs, dYs, gs, d0s, H, 2);
+  for (size_t l = 1; l < a.W.size(); ++l) {
+    EXPECT_EQ(ha.W[l], ga.W[l]) << l;
+    EXPECT_EQ(ha.b[l], ga.b[l]) << l;
+    EXPECT_EQ(hb.W[l], gb.W[l]) << l;
+    EXPECT_EQ(hb.b[l], gb.b[l]) << l;
+  }
+  EXPECT_LT(rel_diff(ha.b[0], ga.b[0]), 1e-6);
+  EXPECT_LT(rel_diff(hb.b[0], gb.b[0]), 1e-6);
+  EXPECT_EQ(ha.W[0].cwiseAbs().maxCoeff(), 0.f);
+  const Eigen::Map<const Mlp::Mat, 0, Eigen::OuterStride<>> D(d0.data(), H, n,
+                                                              Eigen::OuterStride<>(H));
+  EXPECT_LT(rel_diff(D.topRows(16) * X.transpose(), ga.W[0]), 1e-5);
+  EXPECT_LT(rel_diff(D.bottomRows(8) * X.transpose(), gb.W[0]), 1e-5);
+  // Buffers the tail's sizing did not make are refused.
+  MlpCache stale;
+  MlpCache* bad[1] = {&stale};
+  EXPECT_THROW(mlp_forward_tail(ms, bad, Ys, 1), Error);
+}
+
 }  // namespace
 }  // namespace ks
