@@ -73,6 +73,7 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
     noted_xs_ = xs, noted_ys_ = ys, noted_zs_ = zs;
     // The backward's binning of these points, made once for all the steps until they change.
     bins_ = triplane_bins(tp_, xs.data(), ys.data(), zs.data(), n);
+    texel0_.set_points(tp_, touched_, xs.data(), ys.data(), zs.data(), n);
   }
   if (subset && last_.size() != size_t(n))
     throw Error("Decoder::decode: a subset needs a whole decode of the same points before it");
@@ -90,14 +91,27 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
     }
     px = sub_xs_.data(), py = sub_ys_.data(), pz = sub_zs_.data();
   }
-  feats_.resize(size_t(m) * F);
-  triplane_forward(tp_, px, py, pz, m, feats_.data());
-  Eigen::Map<const Mlp::Mat> X(feats_.data(), F, m);
-  // The MLPs read the features, which stay in feats_ until the backward: no copy in the caches.
-  if (joint_)
-    mlp_forward(geo_, X, geo_cache_, Yg_, false);
-  else
-    mlp_forward_pair(geo_, app_, X, geo_cache_, Yg_, app_cache_, Ya_);
+  const Mlp* mlps[2] = {&geo_, &app_};
+  const int count = joint_ ? 1 : 2;
+  texel0_used_ = !subset && TexelLayer0::available(tp_, mlps, count);
+  if (texel0_used_) {
+    // The first layers in texel space, then the rest of the MLPs.
+    mlp_tail_buffers(geo_, m, geo_cache_, Yg_);
+    if (!joint_) mlp_tail_buffers(app_, m, app_cache_, Ya_);
+    MlpCache* caches[2] = {&geo_cache_, &app_cache_};
+    Mlp::Mat* Ys[2] = {&Yg_, &Ya_};
+    texel0_.forward(tp_, mlps, count, caches);
+    mlp_forward_tail(mlps, caches, Ys, count);
+  } else {
+    feats_.resize(size_t(m) * F);
+    triplane_forward(tp_, px, py, pz, m, feats_.data());
+    Eigen::Map<const Mlp::Mat> X(feats_.data(), F, m);
+    // The MLPs read the features, which stay in feats_ until the backward: no copy in the caches.
+    if (joint_)
+      mlp_forward(geo_, X, geo_cache_, Yg_, false);
+    else
+      mlp_forward_pair(geo_, app_, X, geo_cache_, Yg_, app_cache_, Ya_);
+  }
   const int gs = geo_.out_dim();  // a point's outputs in Yg_
   // The outputs go to the last decode's Gaussians (a subset replaces only its own), which are
   // then copied out, so that what the caller's components add to `g` never accumulates.
@@ -166,6 +180,25 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
     for (int k = 0; k < 3; ++k) a[k] = dsh[3 * i + k];
   }
   ggeo_.zero_like(geo_);
+  if (texel0_used_) {
+    if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_)
+      throw Error("Decoder::backward: the points differ from the last decode's");
+    if (!joint_) gapp_.zero_like(app_);
+    const Mlp* mlps[2] = {&geo_, &app_};
+    const MlpCache* caches[2] = {&geo_cache_, &app_cache_};
+    const Mlp::Mat* dYs[2] = {&dYg_, &dYa_};
+    MlpGrads* grads[2] = {&ggeo_, &gapp_};
+    const int count = joint_ ? 1 : 2;
+    const int H = TexelLayer0::width(mlps, count);
+    d0_.resize(size_t(H) * size_t(m));
+    float* d0s[2] = {d0_.data(), d0_.data() + geo_.W[0].rows()};
+    mlp_backward_tail(mlps, caches, dYs, grads, d0s, H, count);
+    // Writes every touched texel's gradient (no zeroing needed).
+    texel0_.backward(tp_, mlps, count, bins_, d0_.data(), grads, dplanes_.data());
+    ggeo_.pack(geo_grad_);
+    if (!joint_) gapp_.pack(app_grad_);
+    return;
+  }
   if (joint_) {
     mlp_backward(geo_, geo_cache_, dYg_, ggeo_, &dX_, feats_.data());
   } else {

@@ -17,6 +17,7 @@
 #include "reconstruct/adam.hpp"
 #include "reconstruct/mlp.hpp"
 #include "reconstruct/options.hpp"
+#include "reconstruct/texel_layer0.hpp"
 #include "reconstruct/triplane.hpp"
 
 namespace ks {
@@ -86,6 +87,11 @@ class Decoder {
   std::vector<std::pair<size_t, size_t>> touched_ranges_;
   std::vector<float> noted_xs_, noted_ys_, noted_zs_;
   TriplaneBins bins_;  // triplane_bins of the noted points
+  // The MLPs' first layer in texel space (texel_layer0.hpp), when it serves; whether the last
+  // decode took it, and the first layer's pre-activation gradients (both MLPs' rows stacked).
+  TexelLayer0 texel0_;
+  bool texel0_used_ = false;
+  std::vector<float> d0_;
   // The last decode's Gaussians and offsets (all points), its subset (empty: all) and that
   // subset's lookup points.
   Gaussians last_;

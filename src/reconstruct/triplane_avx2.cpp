@@ -1,6 +1,7 @@
 // AVX2+FMA loops of the float triplane (see triplane_kernels.hpp): a lookup's four texels are
 // blended, or its gradient scattered to them, eight channels a vector. Compiled into the portable
 // build with per-function target attributes and chosen at run time.
+#include <algorithm>
 #include <cstdlib>
 
 #include "reconstruct/mlp_kernels.hpp"
@@ -85,6 +86,100 @@ void KS_AVX2 backward_run_avx2(const TriplaneT<float>& tp, int p, const float* x
   }
 }
 
+namespace {
+// Channels [c, c + 8 NV) of point i's blend: NV independent accumulators, the twelve texels in
+// turn (so the fused multiply-adds of one texel do not wait on each other).
+template <int NV>
+__attribute__((target("avx2,fma"), always_inline)) inline void blend_block(
+    const float* const* rows, const float* w, const float* bias, int c, int i, float* out0, int h0,
+    float* out1, int h1) {
+  __m256 acc[NV];
+  for (int v = 0; v < NV; ++v) acc[v] = _mm256_loadu_ps(bias + c + 8 * v);
+  for (int t = 0; t < 12; ++t) {
+    const __m256 wt = _mm256_set1_ps(w[t]);
+    const float* r = rows[t] + c;
+    for (int v = 0; v < NV; ++v) acc[v] = _mm256_fmadd_ps(wt, _mm256_loadu_ps(r + 8 * v), acc[v]);
+  }
+  for (int v = 0; v < NV; ++v) {
+    const int ch = c + 8 * v;
+    float* o =
+        ch < h0 ? out0 + size_t(i) * size_t(h0) + ch : out1 + size_t(i) * size_t(h1) + (ch - h0);
+    _mm256_storeu_ps(o, _mm256_max_ps(acc[v], _mm256_setzero_ps()));
+  }
+}
+}  // namespace
+
+void KS_AVX2 blend_range_avx2(const Taps* taps, int n, const float* Q, int H, const float* bias,
+                              int i0, int i1, float* out0, int h0, float* out1) {
+  const int h1 = H - h0;
+  for (int i = i0; i < i1; ++i) {
+    const float* rows[12];
+    float w[12];
+    for (int p = 0; p < 3; ++p) {
+      const Taps& tp = taps[size_t(p) * size_t(n) + size_t(i)];
+      for (int t = 0; t < 4; ++t)
+        rows[4 * p + t] = Q + size_t(tp.row[t]) * size_t(H), w[4 * p + t] = tp.w[t];
+    }
+    for (int c = 0; c < H; c += 64) {
+      switch (std::min(8, (H - c) / 8)) {
+        case 8:
+          blend_block<8>(rows, w, bias, c, i, out0, h0, out1, h1);
+          break;
+        case 7:
+          blend_block<7>(rows, w, bias, c, i, out0, h0, out1, h1);
+          break;
+        case 6:
+          blend_block<6>(rows, w, bias, c, i, out0, h0, out1, h1);
+          break;
+        case 5:
+          blend_block<5>(rows, w, bias, c, i, out0, h0, out1, h1);
+          break;
+        case 4:
+          blend_block<4>(rows, w, bias, c, i, out0, h0, out1, h1);
+          break;
+        case 3:
+          blend_block<3>(rows, w, bias, c, i, out0, h0, out1, h1);
+          break;
+        case 2:
+          blend_block<2>(rows, w, bias, c, i, out0, h0, out1, h1);
+          break;
+        default:
+          blend_block<1>(rows, w, bias, c, i, out0, h0, out1, h1);
+          break;
+      }
+    }
+  }
+}
+
+void KS_AVX2 scatter_run_avx2(const Taps* taps, int n, int p, const int* ord, int k0, int k1,
+                              const float* d, int H, float* dQ) {
+  const Taps* tp = taps + size_t(p) * size_t(n);
+  constexpr int kAhead = 8;
+  for (int k = k0; k < k1; ++k) {
+    const int i = ord[k];
+    if (k + kAhead < k1) {
+      const char* a = reinterpret_cast<const char*>(d + size_t(ord[k + kAhead]) * size_t(H));
+      for (int off = 0; off < int(sizeof(float)) * H; off += 64) _mm_prefetch(a + off, _MM_HINT_T0);
+    }
+    const float* g = d + size_t(i) * size_t(H);
+    const int* r = tp[i].row;
+    const float* w = tp[i].w;
+    float* t00 = dQ + size_t(r[0]) * size_t(H);
+    float* t10 = dQ + size_t(r[1]) * size_t(H);
+    float* t01 = dQ + size_t(r[2]) * size_t(H);
+    float* t11 = dQ + size_t(r[3]) * size_t(H);
+    const __m256 w00 = _mm256_set1_ps(w[0]), w10 = _mm256_set1_ps(w[1]);
+    const __m256 w01 = _mm256_set1_ps(w[2]), w11 = _mm256_set1_ps(w[3]);
+    for (int ch = 0; ch < H; ch += 8) {
+      const __m256 gc = _mm256_loadu_ps(g + ch);
+      _mm256_storeu_ps(t00 + ch, _mm256_fmadd_ps(w00, gc, _mm256_loadu_ps(t00 + ch)));
+      _mm256_storeu_ps(t10 + ch, _mm256_fmadd_ps(w10, gc, _mm256_loadu_ps(t10 + ch)));
+      _mm256_storeu_ps(t01 + ch, _mm256_fmadd_ps(w01, gc, _mm256_loadu_ps(t01 + ch)));
+      _mm256_storeu_ps(t11 + ch, _mm256_fmadd_ps(w11, gc, _mm256_loadu_ps(t11 + ch)));
+    }
+  }
+}
+
 #else  // not x86: never selected (use_avx2() is false)
 
 void forward_range_avx2(const TriplaneT<float>&, const float*, const float*, const float*, int, int,
@@ -93,6 +188,13 @@ void forward_range_avx2(const TriplaneT<float>&, const float*, const float*, con
 }
 void backward_run_avx2(const TriplaneT<float>&, int, const float*, const float*, const float*,
                        const int*, int, int, const float*, float*, int) {
+  std::abort();
+}
+void blend_range_avx2(const Taps*, int, const float*, int, const float*, int, int, float*, int,
+                      float*) {
+  std::abort();
+}
+void scatter_run_avx2(const Taps*, int, int, const int*, int, int, const float*, int, float*) {
   std::abort();
 }
 

@@ -82,4 +82,22 @@ void backward_run_avx2(const TriplaneT<float>& tp, int p, const float* xs, const
                        const float* zs, const int* ord, int k0, int k1, const float* dfeats,
                        float* dplane, int ahead);
 
+// The decoders' first layer in texel space (reconstruct/texel_layer0.hpp). Q holds H values a
+// texel (H a multiple of 8) for a compact set of texels. A point's taps in a plane: the rows of Q
+// of its lookup's four texels (00, 10, 01, 11) and their bilinear weights, made once for points
+// that stay fixed; taps[p n + i] for plane p, point i.
+struct Taps {
+  int row[4];
+  float w[4];
+};
+// Points [i0, i1) of n: z = bias + the blend of Q's rows over the point's twelve taps, then
+// max(z, 0), written as rows [0, h0) to out0 (leading dim h0) and rows [h0, H) to out1 (leading
+// dim H - h0; unused when h0 == H). h0 is a multiple of 8.
+void blend_range_avx2(const Taps* taps, int n, const float* Q, int H, const float* bias, int i0,
+                      int i1, float* out0, int h0, float* out1);
+// Adds the gradients d (H a point, point-major) of plane p's points ord[k0..k1), times their
+// bilinear weights, to the rows of dQ of their four taps in that plane, in that order.
+void scatter_run_avx2(const Taps* taps, int n, int p, const int* ord, int k0, int k1,
+                      const float* d, int H, float* dQ);
+
 }  // namespace ks::triplane_kernels

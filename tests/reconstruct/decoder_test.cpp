@@ -13,62 +13,16 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "reconstruct/decoder_fixture.hpp"
 
 namespace ks {
 namespace {
 
-struct Fixture {
-  Eigen::MatrixXd anchors;
-  Eigen::MatrixXi faces;
-  std::vector<float> xs, ys, zs, bias;
-  DecoderOptions o;
-  Fixture() {
-    // A 20 x 20 grid of anchors, bent, with its triangles.
-    const int g = 20;
-    anchors.resize(g * g, 3);
-    for (int y = 0; y < g; ++y)
-      for (int x = 0; x < g; ++x)
-        anchors.row(y * g + x) << 0.05 * x, 0.05 * y, 0.02 * std::sin(0.5 * x + 0.3 * y);
-    faces.resize(2 * (g - 1) * (g - 1), 3);
-    int f = 0;
-    for (int y = 0; y + 1 < g; ++y)
-      for (int x = 0; x + 1 < g; ++x) {
-        const int a = y * g + x;
-        faces.row(f++) << a, a + 1, a + g;
-        faces.row(f++) << a + 1, a + g + 1, a + g;
-      }
-    for (int i = 0; i < g * g; ++i) {
-      xs.push_back(float(anchors(i, 0)));
-      ys.push_back(float(anchors(i, 1)));
-      zs.push_back(float(anchors(i, 2)));
-    }
-    bias.assign(size_t(g * g), 0.f);
-    o.triplane_res = 16;
-    o.triplane_channels = 4;
-    o.hidden = 8;
-  }
-};
-
-// Upstream gradients of n decoded Gaussians and their offsets, uniform in [-1, 1].
-struct Upstream {
-  std::vector<float> dm, doff, dls, dq, dop,
-      dsh;  // means, offsets, log-scales, quats, opacity, SH0
-  Upstream(int n, unsigned seed)
-      : dm(3 * size_t(n)),
-        doff(dm.size()),
-        dls(dm.size()),
-        dq(4 * size_t(n)),
-        dop(size_t(n)),
-        dsh(dm.size()) {
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<float> U(-1.f, 1.f);
-    for (auto* v : {&dm, &doff, &dls, &dq, &dop, &dsh})
-      for (float& x : *v) x = U(rng);
-  }
-};
+using test::DecoderFixture;
+using test::Upstream;
 
 TEST(Decoder, SubsetDecodesAndBackpropagatesOnlyItsGaussians) {
-  Fixture f;
+  DecoderFixture f;
   const int n = int(f.anchors.rows());
   const float sh0[3] = {0.1f, 0.2f, 0.3f};
   Decoder d;
@@ -130,14 +84,14 @@ TEST(Decoder, SubsetDecodesAndBackpropagatesOnlyItsGaussians) {
 // point's features and MLP outputs do not depend on where it is numbered), and the same upstream
 // gradients, renumbered, give the parameters the same gradients up to the order of the sums.
 TEST(Decoder, VertexOrderDoesNotChangeTheGaussians) {
-  Fixture f;
+  DecoderFixture f;
   const int n = int(f.anchors.rows());
   std::vector<int> perm(static_cast<size_t>(n));  // new vertex k is old vertex perm[k]
   std::iota(perm.begin(), perm.end(), 0);
   std::shuffle(perm.begin(), perm.end(), std::mt19937(11));
   std::vector<int> inv(static_cast<size_t>(n));
   for (int k = 0; k < n; ++k) inv[size_t(perm[size_t(k)])] = k;
-  Fixture g = f;
+  DecoderFixture g = f;
   for (int k = 0; k < n; ++k) {
     const size_t o = size_t(perm[size_t(k)]);
     g.anchors.row(k) = f.anchors.row(long(o));
@@ -162,7 +116,7 @@ TEST(Decoder, VertexOrderDoesNotChangeTheGaussians) {
     std::vector<float> off;
     std::vector<std::vector<float>> grads;
   };
-  auto run = [&](const Fixture& x, bool renumbered) {
+  auto run = [&](const DecoderFixture& x, bool renumbered) {
     Decoder d;
     d.init(x.o, 3, x.anchors, x.faces, 0.f, sh0);
     Adam adam;
@@ -197,74 +151,80 @@ TEST(Decoder, VertexOrderDoesNotChangeTheGaussians) {
 
 // The decoder's backward against central differences of its own decode, for the two MLPs and
 // the joint one: L = the decoded Gaussians and offsets weighted by fixed random upstream
-// gradients; every parameter group's eight largest entries (the loss summed in double from float
+// gradients; with 4 and 8 triplane channels (8: the first layers in texel space, where the CPU has
+// AVX2); every parameter group's eight largest entries (the loss summed in double from float
 // decodes: steps of 1e-4, small enough for the ReLUs' and tanh's curvature, with a 3 % tolerance
 // plus 1 % of the largest difference for float noise).
 TEST(Decoder, BackwardMatchesFiniteDifferencesSplitAndJoint) {
-  Fixture f;
+  DecoderFixture f;
   const int n = int(f.anchors.rows());
   const float sh0[3] = {0.1f, 0.2f, 0.3f};
   const Upstream u(n, 7);
   const std::vector<float>&dm = u.dm, &doff = u.doff, &dls = u.dls, &dq = u.dq, &dop = u.dop,
         &dsh = u.dsh;
-  for (const bool joint : {false, true}) {
-    DecoderOptions o = f.o;
-    o.joint = joint;
-    o.max_offset = 0.2f;
-    Decoder d;
-    d.init(o, 3, f.anchors, f.faces, 0.f, sh0);
-    Adam adam;
-    d.add_parameters(adam, OptimizerOptions{});
-    EXPECT_EQ(adam.has_group("decoder_mlp"), joint);
-    EXPECT_EQ(adam.has_group("appearance_mlp"), !joint);
-    auto loss = [&] {
-      Gaussians g;
-      std::vector<float> off;
-      d.decode(f.anchors, f.xs, f.ys, f.zs, f.bias, g, off);
-      double l = 0;
-      for (size_t k = 0; k < dm.size(); ++k)
-        l += double(dm[k]) * g.means[k] + double(doff[k]) * off[k] +
-             double(dls[k]) * g.log_scales[k] + double(dsh[k]) * g.sh[k];
-      for (size_t k = 0; k < dq.size(); ++k) l += double(dq[k]) * g.quats[k];
-      for (size_t k = 0; k < dop.size(); ++k) l += double(dop[k]) * g.opacity_logits[k];
-      return l;
-    };
-    // Larger last-layer weights than the init's, so that every output moves with the features.
-    std::vector<std::string> names;
-    for (const AdamGroup& g : adam.groups()) names.push_back(g.name);
-    for (const std::string& name : names)
-      if (name != "triplane")
-        for (float& v : *adam.group(name).params) v *= 3.f;
-    loss();
-    d.backward(f.xs, f.ys, f.zs, dm, doff, dls, dq, dop, dsh);
-    for (const std::string& name : names) {
-      AdamGroup& g = adam.group(name);
-      const std::vector<float> grad = *g.grads;
-      std::vector<size_t> idx(grad.size());
-      std::iota(idx.begin(), idx.end(), size_t(0));
-      std::partial_sort(idx.begin(), idx.begin() + 8, idx.end(),
-                        [&](size_t a, size_t b) { return std::abs(grad[a]) > std::abs(grad[b]); });
-      idx.resize(8);
-      std::vector<double> fd;
-      double largest = 0;
-      for (size_t i : idx) {
-        float& p = (*g.params)[i];
-        const float keep = p;
-        const float h = 1e-4f;
-        p = keep + h;
-        const double lp = loss();
-        p = keep - h;
-        const double lm = loss();
-        p = keep;
-        fd.push_back((lp - lm) / (2.0 * double(h)));
-        largest = std::max(largest, std::abs(fd.back()));
+  // 8 channels: the first layers in texel space where the CPU has AVX2 (texel_layer0.hpp).
+  for (const int channels : {4, 8})
+    for (const bool joint : {false, true}) {
+      DecoderOptions o = f.o;
+      o.joint = joint;
+      o.triplane_channels = channels;
+      o.max_offset = 0.2f;
+      Decoder d;
+      d.init(o, 3, f.anchors, f.faces, 0.f, sh0);
+      Adam adam;
+      d.add_parameters(adam, OptimizerOptions{});
+      EXPECT_EQ(adam.has_group("decoder_mlp"), joint);
+      EXPECT_EQ(adam.has_group("appearance_mlp"), !joint);
+      auto loss = [&] {
+        Gaussians g;
+        std::vector<float> off;
+        d.decode(f.anchors, f.xs, f.ys, f.zs, f.bias, g, off);
+        double l = 0;
+        for (size_t k = 0; k < dm.size(); ++k)
+          l += double(dm[k]) * g.means[k] + double(doff[k]) * off[k] +
+               double(dls[k]) * g.log_scales[k] + double(dsh[k]) * g.sh[k];
+        for (size_t k = 0; k < dq.size(); ++k) l += double(dq[k]) * g.quats[k];
+        for (size_t k = 0; k < dop.size(); ++k) l += double(dop[k]) * g.opacity_logits[k];
+        return l;
+      };
+      // Larger last-layer weights than the init's, so that every output moves with the features.
+      std::vector<std::string> names;
+      for (const AdamGroup& g : adam.groups()) names.push_back(g.name);
+      for (const std::string& name : names)
+        if (name != "triplane")
+          for (float& v : *adam.group(name).params) v *= 3.f;
+      loss();
+      d.backward(f.xs, f.ys, f.zs, dm, doff, dls, dq, dop, dsh);
+      for (const std::string& name : names) {
+        AdamGroup& g = adam.group(name);
+        const std::vector<float> grad = *g.grads;
+        std::vector<size_t> idx(grad.size());
+        std::iota(idx.begin(), idx.end(), size_t(0));
+        std::partial_sort(idx.begin(), idx.begin() + 8, idx.end(), [&](size_t a, size_t b) {
+          return std::abs(grad[a]) > std::abs(grad[b]);
+        });
+        idx.resize(8);
+        std::vector<double> fd;
+        double largest = 0;
+        for (size_t i : idx) {
+          float& p = (*g.params)[i];
+          const float keep = p;
+          const float h = 1e-4f;
+          p = keep + h;
+          const double lp = loss();
+          p = keep - h;
+          const double lm = loss();
+          p = keep;
+          fd.push_back((lp - lm) / (2.0 * double(h)));
+          largest = std::max(largest, std::abs(fd.back()));
+        }
+        EXPECT_GT(largest, 1e-3) << g.name;
+        for (size_t q = 0; q < idx.size(); ++q)
+          EXPECT_NEAR(grad[idx[q]], fd[q], 0.03 * std::abs(fd[q]) + 0.01 * largest)
+              << (joint ? "joint " : "split ") << channels << " channels " << g.name << "["
+              << idx[q] << "]";
       }
-      EXPECT_GT(largest, 1e-3) << g.name;
-      for (size_t q = 0; q < idx.size(); ++q)
-        EXPECT_NEAR(grad[idx[q]], fd[q], 0.03 * std::abs(fd[q]) + 0.01 * largest)
-            << (joint ? "joint " : "split ") << g.name << "[" << idx[q] << "]";
     }
-  }
 }
 
 }  // namespace

@@ -1,0 +1,244 @@
+#include "reconstruct/texel_layer0.hpp"
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+
+#include "core/error.hpp"
+
+#include "reconstruct/mlp_kernels.hpp"
+#include "reconstruct/triplane_kernels.hpp"
+
+namespace ks {
+
+namespace {
+namespace mk = mlp_kernels;
+namespace tk = triplane_kernels;
+
+TexelLayer0::Path g_path = TexelLayer0::Path::kAuto;
+
+// Rows of Q a task: the unit of the projections, the weight-gradient partials (summed in chunk
+// order, so the results do not depend on the thread count) and the gathers.
+constexpr int kChunk = 2048;
+// Rows a kernel call in the backward (2048 rows of dQ, 512 KB, are as large as L2; with 96 the
+// weight-gradient and texel-gradient kernels took 10.5 ms a step instead of 15).
+constexpr int kSub = 96;
+// Points a task in the blend.
+constexpr int kPoints = 2048;
+}  // namespace
+
+void TexelLayer0::set_path(Path p) {
+  g_path = p;
+}
+
+int TexelLayer0::width(const Mlp* const* mlps, int count) {
+  int h = 0;
+  for (int q = 0; q < count; ++q) h += int(mlps[q]->W.front().rows());
+  return h;
+}
+
+bool TexelLayer0::available(const Triplane& tp, const Mlp* const* mlps, int count) {
+  static const bool env_off = [] {
+    const char* e = std::getenv("KS_DECODER_NO_TEXEL_LAYER0");
+    return e != nullptr && e[0] != '\0' && e[0] != '0';
+  }();
+  if (env_off || g_path == Path::kPoints || count < 1 || count > 2) return false;
+  if (!mk::use_avx2() || !tk::use_avx2(tp.channels)) return false;
+  for (int q = 0; q < count; ++q) {
+    const Mlp& m = *mlps[q];
+    if (m.W.size() < 2 || m.W[0].rows() % 8 != 0 || m.W[0].cols() != tp.feature_dim()) return false;
+  }
+  return true;
+}
+
+void TexelLayer0::set_points(const Triplane& tp, const std::vector<uint8_t>& marked,
+                             const float* xs, const float* ys, const float* zs, int n) {
+  const size_t per_plane = size_t(tp.res) * size_t(tp.res);
+  if (marked.size() != 3 * per_plane)
+    throw Error("TexelLayer0::set_points: the marks are not of this triplane");
+  cidx_.assign(marked.size(), -1);
+  runs_.clear();
+  int row = 0;
+  for (int p = 0; p < 3; ++p) {
+    plane_row_[p] = row;
+    const size_t end = (size_t(p) + 1) * per_plane;
+    for (size_t t = size_t(p) * per_plane; t < end;) {
+      if (!marked[t]) {
+        ++t;
+        continue;
+      }
+      size_t u = t;
+      while (u < end && marked[u]) cidx_[u] = row + int(u - t), ++u;
+      runs_.push_back({p, int(t), row, int(u - t)});
+      row += int(u - t);
+      t = u;
+    }
+  }
+  plane_row_[3] = rows_ = row;
+  const int chunks = (rows_ + kChunk - 1) / kChunk;
+  chunk_run_.assign(size_t(chunks), 0);
+  size_t r = 0;
+  for (int c = 0; c < chunks; ++c) {
+    while (runs_[r].row + runs_[r].len <= c * kChunk) ++r;
+    chunk_run_[size_t(c)] = int(r);
+  }
+  taps_.resize(3 * size_t(n));
+  n_ = n;
+  bool unmarked = false;
+#pragma omp parallel for schedule(static) if (n > 1024) reduction(|| : unmarked)
+  for (int i = 0; i < n; ++i)
+    for (int p = 0; p < 3; ++p) {
+      const tk::Bilinear<float> b = tk::lookup(tp, p, xs[i], ys[i], zs[i]);
+      const int* c = cidx_.data() + size_t(p) * per_plane + b.i00;
+      tk::Taps& t = taps_[size_t(p) * size_t(n) + size_t(i)];
+      t.row[0] = c[0], t.row[1] = c[b.du], t.row[2] = c[b.dv], t.row[3] = c[b.dv + b.du];
+      t.w[0] = b.w00, t.w[1] = b.w10, t.w[2] = b.w01, t.w[3] = b.w11;
+      for (int j = 0; j < 4; ++j) unmarked = unmarked || t.row[j] < 0;
+    }
+  if (unmarked) throw Error("TexelLayer0::set_points: a point reads a texel not marked");
+}
+
+template <class F>
+void TexelLayer0::for_runs(int r0, int r1, F&& f) const {
+  for (size_t r = size_t(chunk_run_[size_t(r0 / kChunk)]); r < runs_.size(); ++r) {
+    const Run& run = runs_[r];
+    if (run.row >= r1) break;
+    const int a = std::max(r0, run.row), b = std::min(r1, run.row + run.len);
+    if (a < b) f(run, a, b);
+  }
+}
+
+void TexelLayer0::pack(const Triplane& tp, const Mlp* const* mlps, int count) {
+  const int C = tp.channels;
+  H_ = width(mlps, count);
+  a_.assign(3 * size_t(H_) * size_t(C), 0.f);
+  at_.assign(3 * size_t(C) * size_t(H_), 0.f);
+  bias_.assign(size_t(H_), 0.f);
+  int r0 = 0;
+  for (int q = 0; q < count; ++q) {
+    const Mlp::Mat& W = mlps[q]->W[0];
+    for (int r = 0; r < int(W.rows()); ++r) {
+      bias_[size_t(r0 + r)] = mlps[q]->b[0](r);
+      for (int p = 0; p < 3; ++p)
+        for (int j = 0; j < C; ++j) {
+          const float w = W(r, p * C + j);
+          // A_p: H x C, column j at j * H; A_p^T: C x H (C a multiple of 8), column r at r * C.
+          a_[size_t(p) * H_ * C + size_t(j) * H_ + size_t(r0 + r)] = w;
+          at_[size_t(p) * C * H_ + size_t(r0 + r) * C + size_t(j)] = w;
+        }
+    }
+    r0 += int(W.rows());
+  }
+}
+
+void TexelLayer0::forward(const Triplane& tp, const Mlp* const* mlps, int count,
+                          MlpCache* const* caches) {
+  const int n = n_;
+  if (!available(tp, mlps, count)) throw Error("TexelLayer0::forward: not available here");
+  if (cidx_.size() != tp.size() / size_t(tp.channels))
+    throw Error("TexelLayer0::forward: set_points was not called for this triplane");
+  for (int q = 0; q < count; ++q)
+    if (caches[q]->act.size() < 2 || caches[q]->act[1].cols() != n ||
+        caches[q]->act[1].rows() != mlps[q]->W[0].rows())
+      throw Error("TexelLayer0::forward: a cache is not sized for these points");
+  pack(tp, mlps, count);
+  const int C = tp.channels, H = H_;
+  t_.resize(size_t(rows_) * size_t(C));
+  q_.resize(size_t(rows_) * size_t(H));
+  const int chunks = (rows_ + kChunk - 1) / kChunk;
+  // Gather the set's texels (they change every step) and project them: Q = W0_p t.
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int c = 0; c < chunks; ++c) {
+    const int r0 = c * kChunk, r1 = std::min(rows_, r0 + kChunk);
+    for_runs(r0, r1, [&](const Run& run, int a, int b) {
+      std::memcpy(t_.data() + size_t(a) * C,
+                  tp.planes.data() + (size_t(run.texel) + size_t(a - run.row)) * C,
+                  sizeof(float) * size_t(b - a) * size_t(C));
+    });
+    for (int p = 0; p < 3; ++p) {
+      const int a = std::max(r0, plane_row_[p]), b = std::min(r1, plane_row_[p + 1]);
+      if (a < b)
+        mk::gemm_cols_avx2(a_.data() + size_t(p) * H * C, H, C, t_.data() + size_t(a) * C, C, b - a,
+                           q_.data() + size_t(a) * H, H, mk::Epilogue::kNone, nullptr, nullptr, 0);
+    }
+  }
+  // Each point: the bias plus its twelve texels' rows of Q, blended; the ReLU; out to the caches.
+  const int h0 = int(mlps[0]->W[0].rows());
+  float* out1 = count > 1 ? caches[1]->act[1].data() : nullptr;
+  const int tasks = (n + kPoints - 1) / kPoints;
+#pragma omp parallel for schedule(dynamic, 1) if (tasks > 1)
+  for (int t = 0; t < tasks; ++t)
+    tk::blend_range_avx2(taps_.data(), n, q_.data(), H, bias_.data(), t * kPoints,
+                         std::min(n, (t + 1) * kPoints), caches[0]->act[1].data(), h0, out1);
+}
+
+void TexelLayer0::backward(const Triplane& tp, const Mlp* const* mlps, int count,
+                           const TriplaneBins& bins, const float* d0, MlpGrads* const* g,
+                           float* dplanes) {
+  const int n = n_;
+  if (H_ != width(mlps, count) || t_.size() != size_t(rows_) * size_t(tp.channels))
+    throw Error("TexelLayer0::backward: not the MLPs of the last forward");
+  if (bins.n != n || bins.res != tp.res)
+    throw Error("TexelLayer0::backward: the bins are of other points or another plane size");
+  const int C = tp.channels, H = H_;
+  const int chunks = (rows_ + kChunk - 1) / kChunk;
+  dq_.resize(size_t(rows_) * size_t(H));
+#pragma omp parallel for schedule(static)
+  for (int c = 0; c < chunks; ++c) {
+    const size_t r0 = size_t(c) * kChunk, r1 = std::min(size_t(rows_), r0 + kChunk);
+    std::fill(dq_.begin() + long(r0 * H), dq_.begin() + long(r1 * H), 0.f);
+  }
+  // The points' gradients to their texels' rows: stripes two apart never share a texel, and the
+  // rows of Q follow the texels' order, so the stripe scheme of triplane_backward holds here.
+  const int stripes = bins.stripes;
+  for (int parity = 0; parity < 2; ++parity) {
+    const int per_plane = (stripes + 1 - parity) / 2;
+#pragma omp parallel for schedule(dynamic, 1) if (n > 1024)
+    for (int task = 0; task < 3 * per_plane; ++task) {
+      const int p = task / per_plane;
+      const int s = 2 * (task % per_plane) + parity;
+      const int* st = bins.start.data() + size_t(p) * (stripes + 1);
+      tk::scatter_run_avx2(taps_.data(), n, p, bins.order.data() + size_t(p) * n, st[s], st[s + 1],
+                           d0, H, dq_.data());
+    }
+  }
+  // Per chunk of rows: dW0_p += dQ t^T (a partial per chunk and plane), and dt = W0_p^T dQ.
+  const size_t per = size_t(H) * size_t(C);
+  partials_.assign(size_t(chunks) * 3 * per, 0.f);
+  dt_.resize(size_t(rows_) * size_t(C));
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int c = 0; c < chunks; ++c) {
+    const int r0 = c * kChunk, r1 = std::min(rows_, r0 + kChunk);
+    for (int p = 0; p < 3; ++p) {
+      const int a = std::max(r0, plane_row_[p]), b = std::min(r1, plane_row_[p + 1]);
+      // Sub-blocks small enough for the kernels' passes over them to stay in L2.
+      for (int a2 = a; a2 < b; a2 += kSub) {
+        const int b2 = std::min(b, a2 + kSub);
+        mk::outer_acc_avx2(dq_.data() + size_t(a2) * H, H, H, t_.data() + size_t(a2) * C, C, C,
+                           b2 - a2, partials_.data() + (size_t(c) * 3 + size_t(p)) * per, nullptr);
+        mk::gemm_cols_avx2(at_.data() + size_t(p) * C * H, C, H, dq_.data() + size_t(a2) * H, H,
+                           b2 - a2, dt_.data() + size_t(a2) * C, C, mk::Epilogue::kNone, nullptr,
+                           nullptr, 0);
+      }
+    }
+    for_runs(r0, r1, [&](const Run& run, int a, int b) {
+      std::memcpy(dplanes + (size_t(run.texel) + size_t(a - run.row)) * C,
+                  dt_.data() + size_t(a) * C, sizeof(float) * size_t(b - a) * size_t(C));
+    });
+  }
+  // The partials in chunk order, to each MLP's first-layer weights (rows r0.. of the stack).
+  int r0 = 0;
+  for (int q = 0; q < count; ++q) {
+    Mlp::Mat& GW = g[q]->W[0];
+    const int rows = int(GW.rows());
+    for (int p = 0; p < 3; ++p)
+      for (int c = 0; c < chunks; ++c) {
+        const float* src = partials_.data() + (size_t(c) * 3 + size_t(p)) * per;
+        for (int j = 0; j < C; ++j)
+          for (int r = 0; r < rows; ++r) GW(r, p * C + j) += src[size_t(j) * H + size_t(r0 + r)];
+      }
+    r0 += rows;
+  }
+}
+
+}  // namespace ks

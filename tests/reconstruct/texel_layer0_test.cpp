@@ -1,0 +1,164 @@
+// The decoders' first layer in texel space (reconstruct/texel_layer0.hpp) against the point-wise
+// first layer it replaces: the same Gaussians and parameter gradients up to float rounding, for
+// the two MLPs and the joint one; the same bits on one thread and two; and its refusals. (The
+// finite-difference test of the whole decoder, decoder_test.cpp, runs it too, with 8 channels.)
+#include "reconstruct/texel_layer0.hpp"
+
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "core/error.hpp"
+#include "reconstruct/decoder.hpp"
+#include "reconstruct/decoder_fixture.hpp"
+
+namespace ks {
+namespace {
+
+using test::DecoderFixture;
+using test::Upstream;
+
+struct PathGuard {
+  explicit PathGuard(TexelLayer0::Path p) { TexelLayer0::set_path(p); }
+  ~PathGuard() { TexelLayer0::set_path(TexelLayer0::Path::kAuto); }
+};
+
+// One decode and backward: the decoded Gaussians and offsets, then every group's gradient.
+struct Outcome {
+  Gaussians g;
+  std::vector<float> offsets;
+  std::vector<std::string> names;
+  std::vector<std::vector<float>> grads;
+};
+
+DecoderOptions options(bool joint) {
+  DecoderOptions o = DecoderFixture().o;
+  o.triplane_res = 16;
+  o.triplane_channels = 8;
+  o.hidden = 16;
+  o.joint = joint;
+  o.max_offset = 0.2f;
+  return o;
+}
+
+Outcome run(const DecoderFixture& f, const DecoderOptions& o, TexelLayer0::Path path) {
+  PathGuard guard(path);
+  const float sh0[3] = {0.1f, 0.2f, 0.3f};
+  Decoder d;
+  d.init(o, 5, f.anchors, f.faces, 0.f, sh0);
+  Adam adam;
+  d.add_parameters(adam, OptimizerOptions{});
+  // Larger weights than the init's, so that every output and gradient is far from zero.
+  for (const AdamGroup& g : adam.groups())
+    if (g.name != "triplane")
+      for (float& v : *adam.group(g.name).params) v *= 3.f;
+  Outcome r;
+  d.decode(f.anchors, f.xs, f.ys, f.zs, f.bias, r.g, r.offsets);
+  const int n = int(f.anchors.rows());
+  const Upstream u(n, 11);
+  d.backward(f.xs, f.ys, f.zs, u.dm, u.doff, u.dls, u.dq, u.dop, u.dsh);
+  for (const AdamGroup& g : adam.groups()) {
+    r.names.push_back(g.name);
+    r.grads.push_back(*g.grads);
+  }
+  return r;
+}
+
+bool available(const DecoderOptions& o) {
+  Triplane tp;
+  const float lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
+  tp.init(o.triplane_res, o.triplane_channels, lo, hi, 1);
+  Mlp m;
+  m.init({tp.feature_dim(), o.hidden, o.hidden, 9}, 1);
+  const Mlp* mlps[1] = {&m};
+  return TexelLayer0::available(tp, mlps, 1);
+}
+
+void expect_close(const std::vector<float>& a, const std::vector<float>& b, double tol,
+                  const std::string& what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  double scale = 0;
+  for (float v : b) scale = std::max(scale, double(std::abs(v)));
+  EXPECT_GT(scale, 0) << what;
+  for (size_t k = 0; k < a.size(); ++k)
+    ASSERT_NEAR(a[k], b[k], tol * std::max(1.0, scale)) << what << " " << k;
+}
+
+TEST(TexelLayer0, DecoderMatchesThePointWiseFirstLayer) {
+  const DecoderFixture f;
+  for (const bool joint : {false, true}) {
+    const DecoderOptions o = options(joint);
+    if (!available(o)) GTEST_SKIP() << "no AVX2/FMA: the texel-space path is not taken";
+    const Outcome t = run(f, o, TexelLayer0::Path::kAuto);
+    const Outcome p = run(f, o, TexelLayer0::Path::kPoints);
+    const std::string j = joint ? "joint " : "split ";
+    expect_close(t.g.means, p.g.means, 1e-5, j + "means");
+    expect_close(t.g.log_scales, p.g.log_scales, 1e-5, j + "log_scales");
+    expect_close(t.g.quats, p.g.quats, 1e-5, j + "quats");
+    expect_close(t.g.opacity_logits, p.g.opacity_logits, 1e-5, j + "opacity");
+    expect_close(t.g.sh, p.g.sh, 1e-5, j + "sh");
+    expect_close(t.offsets, p.offsets, 1e-5, j + "offsets");
+    ASSERT_EQ(t.names, p.names);
+    for (size_t k = 0; k < t.names.size(); ++k)
+      expect_close(t.grads[k], p.grads[k], 1e-5, j + t.names[k]);
+  }
+}
+
+TEST(TexelLayer0, SameBitsOnOneThreadAndTwo) {
+  const DecoderFixture f;
+  const DecoderOptions o = options(false);
+  if (!available(o)) GTEST_SKIP() << "no AVX2/FMA: the texel-space path is not taken";
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const Outcome one = run(f, o, TexelLayer0::Path::kAuto);
+  omp_set_num_threads(2);
+  const Outcome two = run(f, o, TexelLayer0::Path::kAuto);
+  omp_set_num_threads(threads);
+  EXPECT_EQ(one.g.means, two.g.means);
+  EXPECT_EQ(one.g.sh, two.g.sh);
+  for (size_t k = 0; k < one.grads.size(); ++k) EXPECT_EQ(one.grads[k], two.grads[k]) << k;
+}
+
+TEST(TexelLayer0, RefusesWhatItCannotServe) {
+  Triplane tp;
+  const float lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
+  tp.init(8, 8, lo, hi, 1);
+  Mlp m;
+  m.init({tp.feature_dim(), 8, 8, 3}, 1);
+  const Mlp* mlps[1] = {&m};
+  TexelLayer0 t;
+  MlpCache cache;
+  Mlp::Mat Y;
+  mlp_tail_buffers(m, 2, cache, Y);
+  MlpCache* caches[1] = {&cache};
+  if (TexelLayer0::available(tp, mlps, 1)) {
+    // Nothing to read yet.
+    EXPECT_THROW(t.forward(tp, mlps, 1, caches), Error);
+  }
+  const float xs[2] = {0.f, 0.5f}, ys[2] = {0.f, -0.5f}, zs[2] = {0.f, 0.25f};
+  // Marks of another plane size, and marks that miss a texel the points read.
+  EXPECT_THROW(t.set_points(tp, std::vector<uint8_t>(10, 1), xs, ys, zs, 2), Error);
+  std::vector<uint8_t> marked;
+  triplane_mark_texels(tp, xs, ys, zs, 1, &marked);  // the first point's texels only
+  EXPECT_THROW(t.set_points(tp, marked, xs, ys, zs, 2), Error);
+  triplane_mark_texels(tp, xs, ys, zs, 2, &marked);
+  EXPECT_NO_THROW(t.set_points(tp, marked, xs, ys, zs, 2));
+  // Widths that are not a multiple of 8, and a one-layer MLP, go the point-wise way.
+  Mlp odd;
+  odd.init({tp.feature_dim(), 12, 12, 3}, 1);
+  const Mlp* odds[1] = {&odd};
+  EXPECT_FALSE(TexelLayer0::available(tp, odds, 1));
+  Mlp one;
+  one.init({tp.feature_dim(), 8}, 1);
+  const Mlp* ones[1] = {&one};
+  EXPECT_FALSE(TexelLayer0::available(tp, ones, 1));
+  PathGuard guard(TexelLayer0::Path::kPoints);
+  EXPECT_FALSE(TexelLayer0::available(tp, mlps, 1));
+}
+
+}  // namespace
+}  // namespace ks
