@@ -194,7 +194,7 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
     float* d0s[2] = {d0_.data(), d0_.data() + geo_.W[0].rows()};
     mlp_backward_tail(mlps, caches, dYs, grads, d0s, H, count);
     // Writes every touched texel's gradient (no zeroing needed).
-    texel0_.backward(tp_, mlps, count, bins_, d0_.data(), grads, dplanes_.data());
+    texel0_.backward(tp_, mlps, count, d0_.data(), grads, dplanes_.data());
     ggeo_.pack(geo_grad_);
     if (!joint_) gapp_.pack(app_grad_);
     return;

@@ -96,6 +96,23 @@ void TexelLayer0::set_points(const Triplane& tp, const std::vector<uint8_t>& mar
       for (int j = 0; j < 4; ++j) unmarked = unmarked || t.row[j] < 0;
     }
   if (unmarked) throw Error("TexelLayer0::set_points: a point reads a texel not marked");
+  // The taps by row of Q, each row's points in increasing order (a counting sort).
+  row_start_.assign(size_t(rows_) + 1, 0);
+  for (const tk::Taps& t : taps_)
+    for (int j = 0; j < 4; ++j) ++row_start_[size_t(t.row[j]) + 1];
+  for (int r = 0; r < rows_; ++r) row_start_[size_t(r) + 1] += row_start_[size_t(r)];
+  row_point_.resize(taps_.size() * 4);
+  row_weight_.resize(row_point_.size());
+  std::vector<int> fill(row_start_.begin(), row_start_.end() - 1);
+  for (int i = 0; i < n; ++i)
+    for (int p = 0; p < 3; ++p) {
+      const tk::Taps& t = taps_[size_t(p) * size_t(n) + size_t(i)];
+      for (int j = 0; j < 4; ++j) {
+        const int e = fill[size_t(t.row[j])]++;
+        row_point_[size_t(e)] = i;
+        row_weight_[size_t(e)] = t.w[j];
+      }
+    }
 }
 
 template <class F>
@@ -172,53 +189,34 @@ void TexelLayer0::forward(const Triplane& tp, const Mlp* const* mlps, int count,
                          std::min(n, (t + 1) * kPoints), caches[0]->act[1].data(), h0, out1);
 }
 
-void TexelLayer0::backward(const Triplane& tp, const Mlp* const* mlps, int count,
-                           const TriplaneBins& bins, const float* d0, MlpGrads* const* g,
-                           float* dplanes) {
-  const int n = n_;
+void TexelLayer0::backward(const Triplane& tp, const Mlp* const* mlps, int count, const float* d0,
+                           MlpGrads* const* g, float* dplanes) {
   if (H_ != width(mlps, count) || t_.size() != size_t(rows_) * size_t(tp.channels))
     throw Error("TexelLayer0::backward: not the MLPs of the last forward");
-  if (bins.n != n || bins.res != tp.res)
-    throw Error("TexelLayer0::backward: the bins are of other points or another plane size");
   const int C = tp.channels, H = H_;
   const int chunks = (rows_ + kChunk - 1) / kChunk;
-  dq_.resize(size_t(rows_) * size_t(H));
-#pragma omp parallel for schedule(static)
-  for (int c = 0; c < chunks; ++c) {
-    const size_t r0 = size_t(c) * kChunk, r1 = std::min(size_t(rows_), r0 + kChunk);
-    std::fill(dq_.begin() + long(r0 * H), dq_.begin() + long(r1 * H), 0.f);
-  }
-  // The points' gradients to their texels' rows: stripes two apart never share a texel, and the
-  // rows of Q follow the texels' order, so the stripe scheme of triplane_backward holds here.
-  const int stripes = bins.stripes;
-  for (int parity = 0; parity < 2; ++parity) {
-    const int per_plane = (stripes + 1 - parity) / 2;
-#pragma omp parallel for schedule(dynamic, 1) if (n > 1024)
-    for (int task = 0; task < 3 * per_plane; ++task) {
-      const int p = task / per_plane;
-      const int s = 2 * (task % per_plane) + parity;
-      const int* st = bins.start.data() + size_t(p) * (stripes + 1);
-      tk::scatter_run_avx2(taps_.data(), n, p, bins.order.data() + size_t(p) * n, st[s], st[s + 1],
-                           d0, H, dq_.data());
-    }
-  }
-  // Per chunk of rows: dW0_p += dQ t^T (a partial per chunk and plane), and dt = W0_p^T dQ.
+  // Per sub-block of rows: dQ (each row the sum of its points' d0 times their weights, gathered
+  // into L1), then dW0_p += dQ t^T (a partial per chunk and plane) and dt = W0_p^T dQ, written to
+  // dplanes. dQ never goes to memory.
   const size_t per = size_t(H) * size_t(C);
   partials_.assign(size_t(chunks) * 3 * per, 0.f);
   dt_.resize(size_t(rows_) * size_t(C));
 #pragma omp parallel for schedule(dynamic, 1)
   for (int c = 0; c < chunks; ++c) {
+    static thread_local std::vector<float> dq;
+    dq.resize(size_t(kSub) * size_t(H));
     const int r0 = c * kChunk, r1 = std::min(rows_, r0 + kChunk);
     for (int p = 0; p < 3; ++p) {
       const int a = std::max(r0, plane_row_[p]), b = std::min(r1, plane_row_[p + 1]);
-      // Sub-blocks small enough for the kernels' passes over them to stay in L2.
       for (int a2 = a; a2 < b; a2 += kSub) {
         const int b2 = std::min(b, a2 + kSub);
-        mk::outer_acc_avx2(dq_.data() + size_t(a2) * H, H, H, t_.data() + size_t(a2) * C, C, C,
-                           b2 - a2, partials_.data() + (size_t(c) * 3 + size_t(p)) * per, nullptr);
-        mk::gemm_cols_avx2(at_.data() + size_t(p) * C * H, C, H, dq_.data() + size_t(a2) * H, H,
-                           b2 - a2, dt_.data() + size_t(a2) * C, C, mk::Epilogue::kNone, nullptr,
-                           nullptr, 0);
+        tk::gather_rows_avx2(row_start_.data(), row_point_.data(), row_weight_.data(), a2, b2, d0,
+                             H, dq.data());
+        mk::outer_acc_avx2(dq.data(), H, H, t_.data() + size_t(a2) * C, C, C, b2 - a2,
+                           partials_.data() + (size_t(c) * 3 + size_t(p)) * per, nullptr);
+        mk::gemm_cols_avx2(at_.data() + size_t(p) * C * H, C, H, dq.data(), H, b2 - a2,
+                           dt_.data() + size_t(a2) * C, C, mk::Epilogue::kNone, nullptr, nullptr,
+                           0);
       }
     }
     for_runs(r0, r1, [&](const Run& run, int a, int b) {

@@ -44,9 +44,9 @@ class TexelLayer0 {
   // From d0 (the first layers' pre-activation gradients, all MLPs' rows stacked in `mlps` order:
   // H x n, H = the sum of their widths) to the gradients: each MLP's first-layer weights (added to
   // g[q]->W[0]) and the planes' (written, not added, to dplanes for every texel of the set; the
-  // others are left as they are). bins: triplane_bins of these points.
-  void backward(const Triplane& tp, const Mlp* const* mlps, int count, const TriplaneBins& bins,
-                const float* d0, MlpGrads* const* g, float* dplanes);
+  // others are left as they are).
+  void backward(const Triplane& tp, const Mlp* const* mlps, int count, const float* d0,
+                MlpGrads* const* g, float* dplanes);
 
   // H: the sum of the MLPs' first-layer widths.
   static int width(const Mlp* const* mlps, int count);
@@ -72,8 +72,11 @@ class TexelLayer0 {
   int rows_ = 0;                     // rows of Q
   int plane_row_[4] = {0, 0, 0, 0};  // plane p's rows: [plane_row_[p], plane_row_[p + 1])
   std::vector<float> a_, at_, bias_;
-  std::vector<float> t_;         // rows_ x C: the set's texels, gathered by the forward
-  std::vector<float> q_, dq_;    // rows_ x H
+  std::vector<float> t_;  // rows_ x C: the set's texels, gathered by the forward
+  std::vector<float> q_;  // rows_ x H
+  // The taps by row of Q: row r's points and weights at [row_start_[r], row_start_[r + 1]).
+  std::vector<int> row_start_, row_point_;
+  std::vector<float> row_weight_;
   std::vector<float> dt_;        // rows_ x C: the texels' gradients before they go to dplanes
   std::vector<float> partials_;  // per chunk: H x C weight-gradient partials
   int H_ = 0;

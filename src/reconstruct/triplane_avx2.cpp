@@ -151,31 +151,54 @@ void KS_AVX2 blend_range_avx2(const Taps* taps, int n, const float* Q, int H, co
   }
 }
 
-void KS_AVX2 scatter_run_avx2(const Taps* taps, int n, int p, const int* ord, int k0, int k1,
-                              const float* d, int H, float* dQ) {
-  const Taps* tp = taps + size_t(p) * size_t(n);
-  constexpr int kAhead = 8;
-  for (int k = k0; k < k1; ++k) {
-    const int i = ord[k];
-    if (k + kAhead < k1) {
-      const char* a = reinterpret_cast<const char*>(d + size_t(ord[k + kAhead]) * size_t(H));
-      for (int off = 0; off < int(sizeof(float)) * H; off += 64) _mm_prefetch(a + off, _MM_HINT_T0);
+namespace {
+// Rows [r0, r1), channels [c, c + 8 NV): NV independent accumulators over a row's points.
+template <int NV>
+__attribute__((target("avx2,fma"), always_inline)) inline void gather_block(
+    const int* start, const int* point, const float* weight, int r0, int r1, const float* d, int H,
+    float* out, int c) {
+  for (int r = r0; r < r1; ++r) {
+    __m256 acc[NV];
+    for (int v = 0; v < NV; ++v) acc[v] = _mm256_setzero_ps();
+    for (int e = start[r]; e < start[r + 1]; ++e) {
+      const __m256 w = _mm256_set1_ps(weight[e]);
+      const float* g = d + size_t(point[e]) * size_t(H) + c;
+      for (int v = 0; v < NV; ++v) acc[v] = _mm256_fmadd_ps(w, _mm256_loadu_ps(g + 8 * v), acc[v]);
     }
-    const float* g = d + size_t(i) * size_t(H);
-    const int* r = tp[i].row;
-    const float* w = tp[i].w;
-    float* t00 = dQ + size_t(r[0]) * size_t(H);
-    float* t10 = dQ + size_t(r[1]) * size_t(H);
-    float* t01 = dQ + size_t(r[2]) * size_t(H);
-    float* t11 = dQ + size_t(r[3]) * size_t(H);
-    const __m256 w00 = _mm256_set1_ps(w[0]), w10 = _mm256_set1_ps(w[1]);
-    const __m256 w01 = _mm256_set1_ps(w[2]), w11 = _mm256_set1_ps(w[3]);
-    for (int ch = 0; ch < H; ch += 8) {
-      const __m256 gc = _mm256_loadu_ps(g + ch);
-      _mm256_storeu_ps(t00 + ch, _mm256_fmadd_ps(w00, gc, _mm256_loadu_ps(t00 + ch)));
-      _mm256_storeu_ps(t10 + ch, _mm256_fmadd_ps(w10, gc, _mm256_loadu_ps(t10 + ch)));
-      _mm256_storeu_ps(t01 + ch, _mm256_fmadd_ps(w01, gc, _mm256_loadu_ps(t01 + ch)));
-      _mm256_storeu_ps(t11 + ch, _mm256_fmadd_ps(w11, gc, _mm256_loadu_ps(t11 + ch)));
+    float* o = out + size_t(r - r0) * size_t(H) + c;
+    for (int v = 0; v < NV; ++v) _mm256_storeu_ps(o + 8 * v, acc[v]);
+  }
+}
+}  // namespace
+
+void KS_AVX2 gather_rows_avx2(const int* start, const int* point, const float* weight, int r0,
+                              int r1, const float* d, int H, float* out) {
+  for (int c = 0; c < H; c += 64) {
+    switch (std::min(8, (H - c) / 8)) {
+      case 8:
+        gather_block<8>(start, point, weight, r0, r1, d, H, out, c);
+        break;
+      case 7:
+        gather_block<7>(start, point, weight, r0, r1, d, H, out, c);
+        break;
+      case 6:
+        gather_block<6>(start, point, weight, r0, r1, d, H, out, c);
+        break;
+      case 5:
+        gather_block<5>(start, point, weight, r0, r1, d, H, out, c);
+        break;
+      case 4:
+        gather_block<4>(start, point, weight, r0, r1, d, H, out, c);
+        break;
+      case 3:
+        gather_block<3>(start, point, weight, r0, r1, d, H, out, c);
+        break;
+      case 2:
+        gather_block<2>(start, point, weight, r0, r1, d, H, out, c);
+        break;
+      default:
+        gather_block<1>(start, point, weight, r0, r1, d, H, out, c);
+        break;
     }
   }
 }
@@ -194,7 +217,7 @@ void blend_range_avx2(const Taps*, int, const float*, int, const float*, int, in
                       float*) {
   std::abort();
 }
-void scatter_run_avx2(const Taps*, int, int, const int*, int, int, const float*, int, float*) {
+void gather_rows_avx2(const int*, const int*, const float*, int, int, const float*, int, float*) {
   std::abort();
 }
 

@@ -95,9 +95,11 @@ struct Taps {
 // dim H - h0; unused when h0 == H). h0 is a multiple of 8.
 void blend_range_avx2(const Taps* taps, int n, const float* Q, int H, const float* bias, int i0,
                       int i1, float* out0, int h0, float* out1);
-// Adds the gradients d (H a point, point-major) of plane p's points ord[k0..k1), times their
-// bilinear weights, to the rows of dQ of their four taps in that plane, in that order.
-void scatter_run_avx2(const Taps* taps, int n, int p, const int* ord, int k0, int k1,
-                      const float* d, int H, float* dQ);
+// The same taps read the other way (for the backward): row r of Q is tapped by the points
+// point[start[r] .. start[r + 1]) with weights weight[..], in increasing point order. Writes
+// out(:, r - r0) = sum of weight * d(:, point) (H values a point, point-major) for rows [r0, r1),
+// leading dim H.
+void gather_rows_avx2(const int* start, const int* point, const float* weight, int r0, int r1,
+                      const float* d, int H, float* out);
 
 }  // namespace ks::triplane_kernels
