@@ -6,9 +6,10 @@
 // where W0_p is W0's block of columns for plane p. With Q = W0_p t computed once for every texel
 // the points read (about 160,000 at the defaults against 165,000 points, each read by 12 points
 // on average), the first layer costs C x H multiply-adds a texel instead of 3C x H a point, and
-// the point's part is a blend of 12 rows of Q. The backward is the same in reverse: each point's
-// gradient of the layer's output (delta0, after the ReLU's mask) is scattered to its texels' dQ,
-// then per texel dW0_p += dQ t^T and dt = W0_p^T dQ.
+// the point's part is a blend of 12 rows of Q. The backward is the same in reverse: a texel's dQ
+// is the sum of the gradients of the layer's output (d0, after the ReLU's mask) of the points
+// that read it, times their weights (gathered texel by texel), then dW0_p += dQ t^T and
+// dt = W0_p^T dQ.
 // The same model and, up to float rounding, the same numbers as the point-wise first layer
 // (mlp.hpp) on triplane_forward's features. Float only, with the AVX2+FMA kernels (the MLPs' and
 // the triplane's): available() says when; KS_DECODER_NO_TEXEL_LAYER0=1 turns it off.

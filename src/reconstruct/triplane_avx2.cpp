@@ -87,26 +87,60 @@ void KS_AVX2 backward_run_avx2(const TriplaneT<float>& tp, int p, const float* x
 }
 
 namespace {
+// Block<nv>::run(args...) for nv in [1, 8]: a block of up to 64 channels, eight a vector, its
+// accumulators in registers.
+template <template <int> class Block, class... Args>
+__attribute__((target("avx2,fma"), always_inline)) inline void by_vectors(int nv, Args... args) {
+  switch (nv) {
+    case 8:
+      Block<8>::run(args...);
+      break;
+    case 7:
+      Block<7>::run(args...);
+      break;
+    case 6:
+      Block<6>::run(args...);
+      break;
+    case 5:
+      Block<5>::run(args...);
+      break;
+    case 4:
+      Block<4>::run(args...);
+      break;
+    case 3:
+      Block<3>::run(args...);
+      break;
+    case 2:
+      Block<2>::run(args...);
+      break;
+    default:
+      Block<1>::run(args...);
+      break;
+  }
+}
+
 // Channels [c, c + 8 NV) of point i's blend: NV independent accumulators, the twelve texels in
 // turn (so the fused multiply-adds of one texel do not wait on each other).
 template <int NV>
-__attribute__((target("avx2,fma"), always_inline)) inline void blend_block(
-    const float* const* rows, const float* w, const float* bias, int c, int i, float* out0, int h0,
-    float* out1, int h1) {
-  __m256 acc[NV];
-  for (int v = 0; v < NV; ++v) acc[v] = _mm256_loadu_ps(bias + c + 8 * v);
-  for (int t = 0; t < 12; ++t) {
-    const __m256 wt = _mm256_set1_ps(w[t]);
-    const float* r = rows[t] + c;
-    for (int v = 0; v < NV; ++v) acc[v] = _mm256_fmadd_ps(wt, _mm256_loadu_ps(r + 8 * v), acc[v]);
+struct BlendBlock {
+  __attribute__((target("avx2,fma"), always_inline)) static inline void run(
+      const float* const* rows, const float* w, const float* bias, int c, int i, float* out0,
+      int h0, float* out1, int h1) {
+    __m256 acc[NV];
+    for (int v = 0; v < NV; ++v) acc[v] = _mm256_loadu_ps(bias + c + 8 * v);
+    for (int t = 0; t < 12; ++t) {
+      const __m256 wt = _mm256_set1_ps(w[t]);
+      const float* r = rows[t] + c;
+      for (int v = 0; v < NV; ++v) acc[v] = _mm256_fmadd_ps(wt, _mm256_loadu_ps(r + 8 * v), acc[v]);
+    }
+    for (int v = 0; v < NV; ++v) {
+      const int ch = c + 8 * v;
+      float* o =
+          ch < h0 ? out0 + size_t(i) * size_t(h0) + ch : out1 + size_t(i) * size_t(h1) + (ch - h0);
+      _mm256_storeu_ps(o, _mm256_max_ps(acc[v], _mm256_setzero_ps()));
+    }
   }
-  for (int v = 0; v < NV; ++v) {
-    const int ch = c + 8 * v;
-    float* o =
-        ch < h0 ? out0 + size_t(i) * size_t(h0) + ch : out1 + size_t(i) * size_t(h1) + (ch - h0);
-    _mm256_storeu_ps(o, _mm256_max_ps(acc[v], _mm256_setzero_ps()));
-  }
-}
+};
 }  // namespace
 
 void KS_AVX2 blend_range_avx2(const Taps* taps, int n, const float* Q, int H, const float* bias,
@@ -120,95 +154,47 @@ void KS_AVX2 blend_range_avx2(const Taps* taps, int n, const float* Q, int H, co
       for (int t = 0; t < 4; ++t)
         rows[4 * p + t] = Q + size_t(tp.row[t]) * size_t(H), w[4 * p + t] = tp.w[t];
     }
-    for (int c = 0; c < H; c += 64) {
-      switch (std::min(8, (H - c) / 8)) {
-        case 8:
-          blend_block<8>(rows, w, bias, c, i, out0, h0, out1, h1);
-          break;
-        case 7:
-          blend_block<7>(rows, w, bias, c, i, out0, h0, out1, h1);
-          break;
-        case 6:
-          blend_block<6>(rows, w, bias, c, i, out0, h0, out1, h1);
-          break;
-        case 5:
-          blend_block<5>(rows, w, bias, c, i, out0, h0, out1, h1);
-          break;
-        case 4:
-          blend_block<4>(rows, w, bias, c, i, out0, h0, out1, h1);
-          break;
-        case 3:
-          blend_block<3>(rows, w, bias, c, i, out0, h0, out1, h1);
-          break;
-        case 2:
-          blend_block<2>(rows, w, bias, c, i, out0, h0, out1, h1);
-          break;
-        default:
-          blend_block<1>(rows, w, bias, c, i, out0, h0, out1, h1);
-          break;
-      }
-    }
+    for (int c = 0; c < H; c += 64)
+      by_vectors<BlendBlock>(std::min(8, (H - c) / 8), rows, w, bias, c, i, out0, h0, out1, h1);
   }
 }
 
 namespace {
 // Rows [r0, r1), channels [c, c + 8 NV): NV independent accumulators over a row's points.
 template <int NV>
-__attribute__((target("avx2,fma"), always_inline)) inline void gather_block(
-    const int* start, const int* point, const float* weight, int r0, int r1, const float* d, int H,
-    float* out, int c) {
-  // The points' gradients are read out of order: fetch an entry's row 16 entries ahead (2.3 ms
-  // off a 120-step fit's step on seed 1, 3 runs each; the same for the blend's rows of Q: no gain).
-  constexpr int K = 16;
-  const int e_end = start[r1];
-  for (int r = r0; r < r1; ++r) {
-    __m256 acc[NV];
-    for (int v = 0; v < NV; ++v) acc[v] = _mm256_setzero_ps();
-    for (int e = start[r]; e < start[r + 1]; ++e) {
-      if (e + K < e_end) {
-        const char* a = reinterpret_cast<const char*>(d + size_t(point[e + K]) * size_t(H) + c);
-        for (int off = 0; off < 32 * NV; off += 64) _mm_prefetch(a + off, _MM_HINT_T0);
+struct GatherBlock {
+  __attribute__((target("avx2,fma"), always_inline)) static inline void run(
+      const int* start, const int* point, const float* weight, int r0, int r1, const float* d,
+      int H, float* out, int c) {
+    // The points' gradients are read out of order: fetch an entry's row 16 entries ahead (2.3 ms
+    // off a 120-step fit's step on seed 1, 3 runs each; the same for the blend's rows of Q: no
+    // gain).
+    constexpr int K = 16;
+    const int e_end = start[r1];
+    for (int r = r0; r < r1; ++r) {
+      __m256 acc[NV];
+      for (int v = 0; v < NV; ++v) acc[v] = _mm256_setzero_ps();
+      for (int e = start[r]; e < start[r + 1]; ++e) {
+        if (e + K < e_end) {
+          const char* a = reinterpret_cast<const char*>(d + size_t(point[e + K]) * size_t(H) + c);
+          for (int off = 0; off < 32 * NV; off += 64) _mm_prefetch(a + off, _MM_HINT_T0);
+        }
+        const __m256 w = _mm256_set1_ps(weight[e]);
+        const float* g = d + size_t(point[e]) * size_t(H) + c;
+        for (int v = 0; v < NV; ++v)
+          acc[v] = _mm256_fmadd_ps(w, _mm256_loadu_ps(g + 8 * v), acc[v]);
       }
-      const __m256 w = _mm256_set1_ps(weight[e]);
-      const float* g = d + size_t(point[e]) * size_t(H) + c;
-      for (int v = 0; v < NV; ++v) acc[v] = _mm256_fmadd_ps(w, _mm256_loadu_ps(g + 8 * v), acc[v]);
+      float* o = out + size_t(r - r0) * size_t(H) + c;
+      for (int v = 0; v < NV; ++v) _mm256_storeu_ps(o + 8 * v, acc[v]);
     }
-    float* o = out + size_t(r - r0) * size_t(H) + c;
-    for (int v = 0; v < NV; ++v) _mm256_storeu_ps(o + 8 * v, acc[v]);
   }
-}
+};
 }  // namespace
 
 void KS_AVX2 gather_rows_avx2(const int* start, const int* point, const float* weight, int r0,
                               int r1, const float* d, int H, float* out) {
-  for (int c = 0; c < H; c += 64) {
-    switch (std::min(8, (H - c) / 8)) {
-      case 8:
-        gather_block<8>(start, point, weight, r0, r1, d, H, out, c);
-        break;
-      case 7:
-        gather_block<7>(start, point, weight, r0, r1, d, H, out, c);
-        break;
-      case 6:
-        gather_block<6>(start, point, weight, r0, r1, d, H, out, c);
-        break;
-      case 5:
-        gather_block<5>(start, point, weight, r0, r1, d, H, out, c);
-        break;
-      case 4:
-        gather_block<4>(start, point, weight, r0, r1, d, H, out, c);
-        break;
-      case 3:
-        gather_block<3>(start, point, weight, r0, r1, d, H, out, c);
-        break;
-      case 2:
-        gather_block<2>(start, point, weight, r0, r1, d, H, out, c);
-        break;
-      default:
-        gather_block<1>(start, point, weight, r0, r1, d, H, out, c);
-        break;
-    }
-  }
+  for (int c = 0; c < H; c += 64)
+    by_vectors<GatherBlock>(std::min(8, (H - c) / 8), start, point, weight, r0, r1, d, H, out, c);
 }
 
 #else  // not x86: never selected (use_avx2() is false)
