@@ -42,6 +42,7 @@ void Decoder::init(const DecoderOptions& o, uint64_t seed, const Eigen::MatrixXd
   subset_.clear();
   noted_xs_.clear(), noted_ys_.clear(), noted_zs_.clear();
   bins_ = TriplaneBins{};
+  texel0_stale_ = true;
   geo_grad_.assign(geo_params_.size(), 0.f);
   app_grad_.assign(app_params_.size(), 0.f);
 }
@@ -73,7 +74,7 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
     noted_xs_ = xs, noted_ys_ = ys, noted_zs_ = zs;
     // The backward's binning of these points, made once for all the steps until they change.
     bins_ = triplane_bins(tp_, xs.data(), ys.data(), zs.data(), n);
-    texel0_.set_points(tp_, touched_, xs.data(), ys.data(), zs.data(), n);
+    texel0_stale_ = true;  // its taps are made when the texel-space path next runs
   }
   if (subset && last_.size() != size_t(n))
     throw Error("Decoder::decode: a subset needs a whole decode of the same points before it");
@@ -96,6 +97,8 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
   texel0_used_ = !subset && TexelLayer0::available(tp_, mlps, count);
   if (texel0_used_) {
     // The first layers in texel space, then the rest of the MLPs.
+    if (texel0_stale_) texel0_.set_points(tp_, touched_, xs.data(), ys.data(), zs.data(), n);
+    texel0_stale_ = false;
     mlp_tail_buffers(geo_, m, geo_cache_, Yg_);
     if (!joint_) mlp_tail_buffers(app_, m, app_cache_, Ya_);
     MlpCache* caches[2] = {&geo_cache_, &app_cache_};

@@ -91,6 +91,7 @@ class Decoder {
   // decode took it, and the first layer's pre-activation gradients (both MLPs' rows stacked).
   TexelLayer0 texel0_;
   bool texel0_used_ = false;
+  bool texel0_stale_ = true;  // the noted points changed since texel0_.set_points
   std::vector<float> d0_;
   // The last decode's Gaussians and offsets (all points), its subset (empty: all) and that
   // subset's lookup points.

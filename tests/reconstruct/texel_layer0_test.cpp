@@ -139,6 +139,30 @@ TEST(TexelLayer0, SecondStepGivesTheSameBits) {
   for (size_t k = 0; k < once.grads.size(); ++k) EXPECT_EQ(once.grads[k], twice.grads[k]) << k;
 }
 
+// Anchors that move (density control) between decodes: the second decode reads the new points'
+// texels, as a decoder that only ever saw them does.
+TEST(TexelLayer0, NewPointsAreTakenUp) {
+  const DecoderFixture f;
+  const DecoderOptions o = options(false);
+  if (!available(o)) GTEST_SKIP() << "no AVX2/FMA: the texel-space path is not taken";
+  DecoderFixture moved = f;
+  for (size_t i = 0; i < moved.xs.size(); ++i) {
+    moved.anchors(long(i), 0) += 0.03, moved.anchors(long(i), 1) -= 0.02;
+    moved.xs[i] = float(moved.anchors(long(i), 0)), moved.ys[i] = float(moved.anchors(long(i), 1));
+  }
+  const float sh0[3] = {0.1f, 0.2f, 0.3f};
+  Decoder both, fresh;
+  both.init(o, 5, f.anchors, f.faces, 0.f, sh0);
+  fresh.init(o, 5, f.anchors, f.faces, 0.f, sh0);
+  Gaussians g, h;
+  std::vector<float> off, off2;
+  both.decode(f.anchors, f.xs, f.ys, f.zs, f.bias, g, off);
+  both.decode(moved.anchors, moved.xs, moved.ys, moved.zs, moved.bias, g, off);
+  fresh.decode(moved.anchors, moved.xs, moved.ys, moved.zs, moved.bias, h, off2);
+  EXPECT_EQ(g.means, h.means);
+  EXPECT_EQ(g.sh, h.sh);
+}
+
 TEST(TexelLayer0, RefusesWhatItCannotServe) {
   Triplane tp;
   const float lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
