@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cstdlib>
-#include <cstring>
 
 #include "core/error.hpp"
 #include "reconstruct/mlp_kernels.hpp"
@@ -160,25 +159,17 @@ void TexelLayer0::forward(const Triplane& tp, const Mlp* const* mlps, int count,
       throw Error("TexelLayer0::forward: a cache is not sized for these points");
   pack(tp, mlps, count);
   const int C = tp.channels, H = H_;
-  t_.resize(size_t(rows_) * size_t(C));
   q_.resize(size_t(rows_) * size_t(H));
   const int chunks = (rows_ + kChunk - 1) / kChunk;
-  // Gather the set's texels (they change every step) and project them: Q = W0_p t.
+  // Project the set's texels (they change every step) where they lie in the planes, run by run:
+  // Q = W0_p t.
 #pragma omp parallel for schedule(dynamic, 1)
-  for (int c = 0; c < chunks; ++c) {
-    const int r0 = c * kChunk, r1 = std::min(rows_, r0 + kChunk);
-    for_runs(r0, r1, [&](const Run& run, int a, int b) {
-      std::memcpy(t_.data() + size_t(a) * C,
-                  tp.planes.data() + (size_t(run.texel) + size_t(a - run.row)) * C,
-                  sizeof(float) * size_t(b - a) * size_t(C));
+  for (int c = 0; c < chunks; ++c)
+    for_runs(c * kChunk, std::min(rows_, (c + 1) * kChunk), [&](const Run& run, int a, int b) {
+      mk::gemm_cols_avx2(a_.data() + size_t(run.plane) * H * C, H, C,
+                         texel(tp.planes.data(), run, a, C), C, b - a, q_.data() + size_t(a) * H, H,
+                         mk::Epilogue::kNone, nullptr, nullptr, 0);
     });
-    for (int p = 0; p < 3; ++p) {
-      const int a = std::max(r0, plane_row_[p]), b = std::min(r1, plane_row_[p + 1]);
-      if (a < b)
-        mk::gemm_cols_avx2(a_.data() + size_t(p) * H * C, H, C, t_.data() + size_t(a) * C, C, b - a,
-                           q_.data() + size_t(a) * H, H, mk::Epilogue::kNone, nullptr, nullptr, 0);
-    }
-  }
   // Each point: the bias plus its twelve texels' rows of Q, blended; the ReLU; out to the caches.
   const int h0 = int(mlps[0]->W[0].rows());
   float* out1 = count > 1 ? caches[1]->act[1].data() : nullptr;
@@ -191,16 +182,16 @@ void TexelLayer0::forward(const Triplane& tp, const Mlp* const* mlps, int count,
 
 void TexelLayer0::backward(const Triplane& tp, const Mlp* const* mlps, int count, const float* d0,
                            MlpGrads* const* g, float* dplanes) {
-  if (H_ != width(mlps, count) || t_.size() != size_t(rows_) * size_t(tp.channels))
+  if (H_ != width(mlps, count) || q_.size() != size_t(rows_) * size_t(H_))
     throw Error("TexelLayer0::backward: not the MLPs of the last forward");
   const int C = tp.channels, H = H_;
   const int chunks = (rows_ + kChunk - 1) / kChunk;
   // Per sub-block of rows: dQ (each row the sum of its points' d0 times their weights, gathered
-  // into L1), then dW0_p += dQ t^T (a partial per chunk and plane) and dt = W0_p^T dQ, written to
-  // dplanes. dQ never goes to memory.
+  // into L1), then, run by run, dW0_p += dQ t^T (a partial per chunk and plane, t read where it
+  // lies in the planes) and dt = W0_p^T dQ, written where it goes in dplanes. dQ never goes to
+  // memory.
   const size_t per = size_t(H) * size_t(C);
   partials_.assign(size_t(chunks) * 3 * per, 0.f);
-  dt_.resize(size_t(rows_) * size_t(C));
 #pragma omp parallel for schedule(dynamic, 1)
   for (int c = 0; c < chunks; ++c) {
     static thread_local std::vector<float> dq;
@@ -208,21 +199,21 @@ void TexelLayer0::backward(const Triplane& tp, const Mlp* const* mlps, int count
     const int r0 = c * kChunk, r1 = std::min(rows_, r0 + kChunk);
     for (int p = 0; p < 3; ++p) {
       const int a = std::max(r0, plane_row_[p]), b = std::min(r1, plane_row_[p + 1]);
+      float* part = partials_.data() + (size_t(c) * 3 + size_t(p)) * per;
       for (int a2 = a; a2 < b; a2 += kSub) {
         const int b2 = std::min(b, a2 + kSub);
         tk::gather_rows_avx2(row_start_.data(), row_point_.data(), row_weight_.data(), a2, b2, d0,
                              H, dq.data());
-        mk::outer_acc_avx2(dq.data(), H, H, t_.data() + size_t(a2) * C, C, C, b2 - a2,
-                           partials_.data() + (size_t(c) * 3 + size_t(p)) * per, nullptr);
-        mk::gemm_cols_avx2(at_.data() + size_t(p) * C * H, C, H, dq.data(), H, b2 - a2,
-                           dt_.data() + size_t(a2) * C, C, mk::Epilogue::kNone, nullptr, nullptr,
-                           0);
+        for_runs(a2, b2, [&](const Run& run, int ra, int rb) {
+          const float* dqa = dq.data() + size_t(ra - a2) * H;
+          mk::outer_acc_avx2(dqa, H, H, texel(tp.planes.data(), run, ra, C), C, C, rb - ra, part,
+                             nullptr);
+          mk::gemm_cols_avx2(at_.data() + size_t(p) * C * H, C, H, dqa, H, rb - ra,
+                             texel(dplanes, run, ra, C), C, mk::Epilogue::kNone, nullptr, nullptr,
+                             0);
+        });
       }
     }
-    for_runs(r0, r1, [&](const Run& run, int a, int b) {
-      std::memcpy(dplanes + (size_t(run.texel) + size_t(a - run.row)) * C,
-                  dt_.data() + size_t(a) * C, sizeof(float) * size_t(b - a) * size_t(C));
-    });
   }
   // The partials in chunk order, to each MLP's first-layer weights (rows r0.. of the stack).
   int r0 = 0;

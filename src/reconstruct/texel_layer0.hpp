@@ -65,6 +65,11 @@ class TexelLayer0 {
   // Calls f(run, first row, end row) for the parts of runs in rows [r0, r1), in order.
   template <class F>
   void for_runs(int r0, int r1, F&& f) const;
+  // Row r of run `run`'s texel in planes (or their gradient): C floats.
+  template <class T>
+  static T* texel(T* planes, const Run& run, int r, int C) {
+    return planes + (size_t(run.texel) + size_t(r - run.row)) * size_t(C);
+  }
   std::vector<int> cidx_;                     // per texel: its row of Q, -1 when not in the set
   std::vector<triplane_kernels::Taps> taps_;  // plane p, point i at p n + i
   int n_ = 0;
@@ -73,12 +78,10 @@ class TexelLayer0 {
   int rows_ = 0;                     // rows of Q
   int plane_row_[4] = {0, 0, 0, 0};  // plane p's rows: [plane_row_[p], plane_row_[p + 1])
   std::vector<float> a_, at_, bias_;
-  std::vector<float> t_;  // rows_ x C: the set's texels, gathered by the forward
   std::vector<float> q_;  // rows_ x H
   // The taps by row of Q: row r's points and weights at [row_start_[r], row_start_[r + 1]).
   std::vector<int> row_start_, row_point_;
   std::vector<float> row_weight_;
-  std::vector<float> dt_;        // rows_ x C: the texels' gradients before they go to dplanes
   std::vector<float> partials_;  // per chunk: H x C weight-gradient partials
   int H_ = 0;
 };
