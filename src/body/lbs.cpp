@@ -9,6 +9,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "core/parallel_copy.hpp"
 #include "core/rotation.hpp"
 #include "core/simd.hpp"
 
@@ -193,8 +194,8 @@ void lbs_forward(const Gaussians& c, const float* pose_offsets, const std::vecto
   posed.quats.resize(4 * size_t(n));
   if (!keep_unposed || posed.log_scales.size() != c.log_scales.size() ||
       posed.sh.size() != c.sh.size()) {
-    posed.log_scales = c.log_scales;
-    posed.sh = c.sh;
+    parallel_assign(posed.log_scales, c.log_scales);
+    parallel_assign(posed.sh, c.sh);
   }
   posed.opacity_logits.resize(size_t(n));  // written every call (culling)
   if (cache) {

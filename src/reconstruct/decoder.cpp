@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "core/error.hpp"
+#include "core/parallel_copy.hpp"
 #include "mesh/trimesh.hpp"
 
 namespace ks {
@@ -65,7 +66,8 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
   if (!joint_) app_.unpack(app_params_);
   const int n = int(anchors.rows());
   const int F = tp_.feature_dim();
-  if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_) {
+  if (!parallel_equal(xs, noted_xs_) || !parallel_equal(ys, noted_ys_) ||
+      !parallel_equal(zs, noted_zs_)) {
     // New lookup points (the first decode, or density control changed the anchors): the texels
     // they read join the touched set (which never shrinks: a texel left behind keeps its
     // moments, and Adam keeps moving it as before).
@@ -147,8 +149,12 @@ void Decoder::decode(const Eigen::MatrixXd& anchors, const std::vector<float>& x
     const float* a = joint_ ? y + geo_out_ : Ya_.data() + size_t(j) * 3;
     for (int k = 0; k < 3; ++k) o.sh[3 * i + k] = sh_init_[k] + a[k];
   }
-  g = last_;
-  offsets = last_offsets_;
+  // Copied over the threads (11 floats and more a Gaussian, about 10 MB at the defaults).
+  g.sh_degree = last_.sh_degree;
+  for (auto f : {&Gaussians::means, &Gaussians::log_scales, &Gaussians::quats,
+                 &Gaussians::opacity_logits, &Gaussians::sh})
+    parallel_assign(g.*f, last_.*f);
+  parallel_assign(offsets, last_offsets_);
 }
 
 void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& ys,

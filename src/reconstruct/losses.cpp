@@ -108,7 +108,9 @@ void blur(const T* in, T* out, T* tmp, int w, int h) {
 template <typename T>
 bool differing_rect(const T* x, const T* y, int w, int h, int ch, int margin, int* rx0, int* rx1,
                     int* ry0, int* ry1) {
-  int x0 = w, x1 = -1, y0 = h, y1 = -1;
+  // Each row's first and last differing element (-1: none), rows over the threads.
+  std::vector<int> firsts(static_cast<size_t>(h)), lasts(static_cast<size_t>(h));
+#pragma omp parallel for schedule(static) if (size_t(w) * h * ch > 65536)
   for (int yy = 0; yy < h; ++yy) {
     const T* a = x + size_t(yy) * w * ch;
     const T* b = y + size_t(yy) * w * ch;
@@ -118,14 +120,19 @@ bool differing_rect(const T* x, const T* y, int w, int h, int ch, int margin, in
         first = i;
         break;
       }
-    if (first < 0) continue;
-    for (int i = w * ch - 1; i >= first; --i)
-      if (a[i] != b[i]) {
-        last = i;
-        break;
-      }
-    x0 = std::min(x0, first / ch);
-    x1 = std::max(x1, last / ch);
+    if (first >= 0)
+      for (int i = w * ch - 1; i >= first; --i)
+        if (a[i] != b[i]) {
+          last = i;
+          break;
+        }
+    firsts[size_t(yy)] = first, lasts[size_t(yy)] = last;
+  }
+  int x0 = w, x1 = -1, y0 = h, y1 = -1;
+  for (int yy = 0; yy < h; ++yy) {
+    if (firsts[size_t(yy)] < 0) continue;
+    x0 = std::min(x0, firsts[size_t(yy)] / ch);
+    x1 = std::max(x1, lasts[size_t(yy)] / ch);
     y0 = std::min(y0, yy);
     y1 = yy;
   }

@@ -191,11 +191,12 @@ void TexelLayer0::backward(const Triplane& tp, const Mlp* const* mlps, int count
   // lies in the planes) and dt = W0_p^T dQ, written where it goes in dplanes. dQ never goes to
   // memory.
   const size_t per = size_t(H) * size_t(C);
-  partials_.assign(size_t(chunks) * 3 * per, 0.f);
+  partials_.resize(size_t(chunks) * 3 * per);
 #pragma omp parallel for schedule(dynamic, 1)
   for (int c = 0; c < chunks; ++c) {
     static thread_local std::vector<float> dq;
     dq.resize(size_t(kSub) * size_t(H));
+    std::fill_n(partials_.data() + size_t(c) * 3 * per, 3 * per, 0.f);
     const int r0 = c * kChunk, r1 = std::min(rows_, r0 + kChunk);
     for (int p = 0; p < 3; ++p) {
       const int a = std::max(r0, plane_row_[p]), b = std::min(r1, plane_row_[p + 1]);
@@ -215,18 +216,21 @@ void TexelLayer0::backward(const Triplane& tp, const Mlp* const* mlps, int count
       }
     }
   }
-  // The partials in chunk order, to each MLP's first-layer weights (rows r0.. of the stack).
-  int r0 = 0;
-  for (int q = 0; q < count; ++q) {
-    Mlp::Mat& GW = g[q]->W[0];
-    const int rows = int(GW.rows());
-    for (int p = 0; p < 3; ++p)
+  // The partials in chunk order, to each MLP's first-layer weights (rows r0.. of the stack);
+  // the weights' columns over the threads.
+#pragma omp parallel for schedule(static)
+  for (int col = 0; col < 3 * C; ++col) {
+    const int p = col / C, j = col % C;
+    int r0 = 0;
+    for (int q = 0; q < count; ++q) {
+      float* gw = g[q]->W[0].data() + size_t(col) * size_t(g[q]->W[0].rows());
+      const int rows = int(g[q]->W[0].rows());
       for (int c = 0; c < chunks; ++c) {
-        const float* src = partials_.data() + (size_t(c) * 3 + size_t(p)) * per;
-        for (int j = 0; j < C; ++j)
-          for (int r = 0; r < rows; ++r) GW(r, p * C + j) += src[size_t(j) * H + size_t(r0 + r)];
+        const float* src = partials_.data() + (size_t(c) * 3 + size_t(p)) * per + size_t(j) * H;
+        for (int r = 0; r < rows; ++r) gw[r] += src[r0 + r];
       }
-    r0 += rows;
+      r0 += rows;
+    }
   }
 }
 

@@ -12,6 +12,7 @@
 #include "body/lbs.hpp"
 #include "body/skin_weights.hpp"
 #include "core/error.hpp"
+#include "core/parallel_copy.hpp"
 #include "core/parallel_sum.hpp"
 #include "core/progress.hpp"
 #include "mesh/morton.hpp"
@@ -335,8 +336,12 @@ struct Trainer::Impl {
     const int W = fr.camera.width, H = fr.camera.height;
     if (rr.color.width != W || rr.color.height != H || fr.image.width != W)
       throw Error("reconstruct: render and frame sizes differ");
-    dcolor = Image(W, H, 3, 0.f);
-    dalpha = Image(W, H, 1, 0.f);
+    // The gradient images, zeroed over the threads in the buffers of the last step.
+    for (auto [img, ch] : {std::pair{&dcolor, 3}, std::pair{&dalpha, 1}}) {
+      img->width = W, img->height = H, img->channels = ch;
+      img->data.resize(size_t(W) * H * size_t(ch));
+      parallel_fill(img->data.data(), img->data.size(), 0.f);
+    }
     const size_t P = size_t(W) * H;
     const LossOptions& lo = opt.loss;
     L.l1 = l1_loss<float>(rr.color.data.data(), fr.image.data.data(), 3 * P, lo.w_l1,
@@ -374,7 +379,7 @@ struct Trainer::Impl {
       return s;
     });
     off_l2 /= n;
-    dsh = rg.sh;
+    parallel_assign(dsh, rg.sh);
     float lap_pos = 0, lap_col = 0;
     if (lo.laplacian != LaplacianMode::kNone) {
       // Position Laplacian of the anchors' displacement (the template's own differential

@@ -1,5 +1,7 @@
 #include "reconstruct/components/vertex_color.hpp"
 
+#include "core/parallel_copy.hpp"
+
 namespace ks {
 
 void VertexColorComponent::setup(FitTemplate& t, const std::vector<LoadedFrame>&) {
@@ -20,7 +22,7 @@ void VertexColorComponent::forward(StepContext& ctx) {
 }
 
 void VertexColorComponent::backward(StepContext& ctx) {
-  grads_ = *ctx.dsh;
+  parallel_assign(grads_, *ctx.dsh);
 }
 
 void VertexColorComponent::remap(const Stencil& S, Adam& adam) {
