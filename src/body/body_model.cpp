@@ -1,5 +1,6 @@
 #include "body/body_model.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -547,7 +548,17 @@ BodyState body_forward(const BodyModel& m, const BodyParams& params) {
   const Eigen::VectorXd feat = pose_feature(sk.local);
   s.pose_offsets = Eigen::MatrixXd::Zero(V, 3);
   if (!m.posedirs_zero && !feat.isZero(0)) {
-    const Eigen::VectorXd d = m.posedirs * feat;
+    // 3V x P (P = 9 (J - 1)): 34 MB of doubles for SMPL, read once a call; rows over the threads
+    // (each row's sum is the same whatever the split).
+    const long rows = long(m.posedirs.rows());
+    constexpr long kRows = 2048;
+    const long blocks = (rows + kRows - 1) / kRows;
+    Eigen::VectorXd d(rows);
+#pragma omp parallel for schedule(static) if (blocks > 4)
+    for (long b = 0; b < blocks; ++b) {
+      const long r0 = b * kRows, len = std::min(kRows, rows - r0);
+      d.segment(r0, len).noalias() = m.posedirs.middleRows(r0, len) * feat;
+    }
     for (int v = 0; v < V; ++v)
       for (int k = 0; k < 3; ++k) s.pose_offsets(v, k) = d[3 * v + k];
   }
@@ -557,18 +568,26 @@ BodyState body_forward(const BodyModel& m, const BodyParams& params) {
   // Linear blend skinning. Joint-outer loop so the (column-major) weights are read contiguously.
   s.vertices.resize(V, 3);
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(12, V);  // per-vertex blended 3x4 transform
-  for (int j = 0; j < J; ++j) {
-    Eigen::Matrix<double, 12, 1> t;
+  std::vector<Eigen::Matrix<double, 12, 1>> ts(static_cast<size_t>(J));
+  for (int j = 0; j < J; ++j)
     for (int c = 0; c < 4; ++c)
-      for (int r = 0; r < 3; ++r) t[3 * c + r] = s.transforms[size_t(j)](r, c);
-    const double* w = m.weights.col(j).data();
-    for (int v = 0; v < V; ++v)
-      if (w[v] != 0.0) A.col(v) += w[v] * t;
-  }
-  for (int v = 0; v < V; ++v) {
-    const Eigen::Map<const Eigen::Matrix<double, 3, 4>> M(A.col(v).data());
-    const Eigen::Vector3d x = (s.rest_vertices.row(v) + s.pose_offsets.row(v)).transpose();
-    s.vertices.row(v) = (M.leftCols<3>() * x + M.col(3)).transpose();
+      for (int r = 0; r < 3; ++r) ts[size_t(j)][3 * c + r] = s.transforms[size_t(j)](r, c);
+  // Blocks of vertices over the threads, each vertex's joints in order.
+  constexpr int kVerts = 1024;
+  const int vblocks = (V + kVerts - 1) / kVerts;
+#pragma omp parallel for schedule(static) if (vblocks > 4)
+  for (int b = 0; b < vblocks; ++b) {
+    const int v0 = b * kVerts, v1 = std::min(V, v0 + kVerts);
+    for (int j = 0; j < J; ++j) {
+      const double* w = m.weights.col(j).data();
+      for (int v = v0; v < v1; ++v)
+        if (w[v] != 0.0) A.col(v) += w[v] * ts[size_t(j)];
+    }
+    for (int v = v0; v < v1; ++v) {
+      const Eigen::Map<const Eigen::Matrix<double, 3, 4>> M(A.col(v).data());
+      const Eigen::Vector3d x = (s.rest_vertices.row(v) + s.pose_offsets.row(v)).transpose();
+      s.vertices.row(v) = (M.leftCols<3>() * x + M.col(3)).transpose();
+    }
   }
   return s;
 }
