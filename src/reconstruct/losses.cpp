@@ -74,34 +74,28 @@ bool blur_use_avx2() {
   return false;
 }
 
-// Separable Gaussian blur, zero padding, on a single-channel planar image (w x h). The operator
-// is symmetric (the transpose of zero-padded correlation with a symmetric kernel is itself).
+// The separable Gaussian blur (zero padding) a row at a time: h blurs a row of a planar image
+// (w wide), v makes row y of the blur from the h-blurred image (w x h). The operator is symmetric
+// (the transpose of zero-padded correlation with a symmetric kernel is itself).
 template <typename T>
-void blur(const T* in, T* out, T* tmp, int w, int h) {
-  static const std::array<T, kWin> g = gaussian_window<T>();
-  const bool avx2 = blur_use_avx2<T>();
-#pragma omp parallel for schedule(static) if (size_t(w) * h > 16384)
-  for (int y = 0; y < h; ++y) {
-    const T* r = in + size_t(y) * w;
-    T* o = tmp + size_t(y) * w;
-    if constexpr (std::is_same_v<T, float>)
-      if (avx2) {
-        blur_row_h_avx2(r, o, w, g.data());
-        continue;
-      }
-    blur_row_h(r, o, w, g.data());
+struct Blur {
+  const std::array<T, kWin>& g = window();
+  bool avx2 = blur_use_avx2<T>();
+  static const std::array<T, kWin>& window() {
+    static const std::array<T, kWin> w = gaussian_window<T>();
+    return w;
   }
-#pragma omp parallel for schedule(static) if (size_t(w) * h > 16384)
-  for (int y = 0; y < h; ++y) {
-    T* o = out + size_t(y) * w;
+  void h(const T* in, T* out, int w) const {
     if constexpr (std::is_same_v<T, float>)
-      if (avx2) {
-        blur_row_v_avx2(tmp, o, w, h, y, g.data());
-        continue;
-      }
-    blur_row_v(tmp, o, w, h, y, g.data());
+      if (avx2) return blur_row_h_avx2(in, out, w, g.data());
+    blur_row_h(in, out, w, g.data());
   }
-}
+  void v(const T* hmap, T* out, int w, int hgt, int y) const {
+    if constexpr (std::is_same_v<T, float>)
+      if (avx2) return blur_row_v_avx2(hmap, out, w, hgt, y, g.data());
+    blur_row_v(hmap, out, w, hgt, y, g.data());
+  }
+};
 
 // The smallest rectangle holding every pixel where x and y differ in any channel, grown by
 // `margin` and clipped to the image; false when the images are equal.
@@ -144,13 +138,22 @@ bool differing_rect(const T* x, const T* y, int w, int h, int ch, int margin, in
   return true;
 }
 
-// Per-thread scratch for ssim (kept between calls: no allocation or page faults per step).
+// Scratch for ssim (kept between calls: no allocation or page faults per step): the crop's x
+// and y, the h-blurred maps of x, y, x^2, y^2, xy and of the gradient maps a, b, c; and, per
+// thread, rows.
 template <typename T>
 struct SsimScratch {
-  std::vector<T> X, Y, XX, YY, XY, mx, my, sxx, syy, sxy, tmp, a, b, c;
+  std::vector<T> X, Y, hX, hY, hXX, hYY, hXY, ha, hb, hc;
   void resize(size_t n) {
-    for (auto* v : {&X, &Y, &XX, &YY, &XY, &mx, &my, &sxx, &syy, &sxy, &tmp, &a, &b, &c})
-      v->resize(n);
+    for (auto* v : {&X, &Y, &hX, &hY, &hXX, &hYY, &hXY, &ha, &hb, &hc}) v->resize(n);
+  }
+};
+template <typename T>
+struct SsimRows {
+  std::vector<T> r;  // 8 rows of the crop's width
+  T* row(int i, int w) {
+    if (r.size() < size_t(8) * size_t(w)) r.resize(size_t(8) * size_t(w));
+    return r.data() + size_t(i) * size_t(w);
   }
 };
 
@@ -173,75 +176,96 @@ T ssim(const T* x, const T* y, int w, int h, int ch, std::vector<T>* map, T grad
   const size_t Q = size_t(cw) * chh;
   thread_local SsimScratch<T> S;
   S.resize(Q);
-  T *X = S.X.data(), *Y = S.Y.data(), *XX = S.XX.data(), *YY = S.YY.data(), *XY = S.XY.data();
-  T *mx = S.mx.data(), *my = S.my.data(), *sxx = S.sxx.data(), *syy = S.syy.data();
-  T *sxy = S.sxy.data(), *tmp = S.tmp.data(), *a = S.a.data(), *b = S.b.data(), *c = S.c.data();
-  // Image index of the crop's pixel q.
-  auto pix = [&](size_t q) { return (size_t(ry0) + q / cw) * w + rx0 + q % cw; };
+  T *X = S.X.data(), *Y = S.Y.data(), *hX = S.hX.data(), *hY = S.hY.data();
+  T *hXX = S.hXX.data(), *hYY = S.hYY.data(), *hXY = S.hXY.data();
+  T *ha = S.ha.data(), *hb = S.hb.data(), *hc = S.hc.data();
+  const Blur<T> blur;
   double total = double(P - Q) * ch;
   const T C1 = T(kC1), C2 = T(kC2);
   const double norm = 1.0 / double(P * ch);
   const bool par = Q > 16384;
+  const bool grad = grad_scale != T(0);
   std::vector<double> row_sum(static_cast<size_t>(chh));
+  // Per channel, three passes over the crop's rows (each over the threads): (1) x, y and their
+  // products, h-blurred; (2) each row's v-blur, its SSIM and, for the gradient, the maps a, b, c,
+  // h-blurred; (3) their v-blur, into dx. Each value is computed as a whole-image blur would
+  // compute it: the same operations in the same order.
   for (int k = 0; k < ch; ++k) {
 #pragma omp parallel for schedule(static) if (par)
     for (int r = 0; r < chh; ++r) {
+      thread_local SsimRows<T> rows;
       const T* xr = x + ((size_t(ry0) + r) * w + rx0) * ch + k;
       const T* yr = y + ((size_t(ry0) + r) * w + rx0) * ch + k;
       const size_t q0 = size_t(r) * cw;
+      T *xx = rows.row(0, cw), *yy = rows.row(1, cw), *xy = rows.row(2, cw);
       for (int i = 0; i < cw; ++i) {
         const T xv = xr[size_t(i) * ch], yv = yr[size_t(i) * ch];
         X[q0 + i] = xv;
         Y[q0 + i] = yv;
-        XX[q0 + i] = xv * xv;
-        YY[q0 + i] = yv * yv;
-        XY[q0 + i] = xv * yv;
+        xx[i] = xv * xv;
+        yy[i] = yv * yv;
+        xy[i] = xv * yv;
       }
+      blur.h(X + q0, hX + q0, cw);
+      blur.h(Y + q0, hY + q0, cw);
+      blur.h(xx, hXX + q0, cw);
+      blur.h(yy, hYY + q0, cw);
+      blur.h(xy, hXY + q0, cw);
     }
-    blur(X, mx, tmp, cw, chh);
-    blur(Y, my, tmp, cw, chh);
-    blur(XX, sxx, tmp, cw, chh);
-    blur(YY, syy, tmp, cw, chh);
-    blur(XY, sxy, tmp, cw, chh);
     // Per row, then the rows' sums in order: the same total for any thread count.
 #pragma omp parallel for schedule(static) if (par)
     for (int r = 0; r < chh; ++r) {
+      thread_local SsimRows<T> rows;
+      T *mx = rows.row(0, cw), *my = rows.row(1, cw), *sxx = rows.row(2, cw);
+      T *syy = rows.row(3, cw), *sxy = rows.row(4, cw), *a = rows.row(5, cw);
+      T *b = rows.row(6, cw), *c = rows.row(7, cw);
+      blur.v(hX, mx, cw, chh, r);
+      blur.v(hY, my, cw, chh, r);
+      blur.v(hXX, sxx, cw, chh, r);
+      blur.v(hYY, syy, cw, chh, r);
+      blur.v(hXY, sxy, cw, chh, r);
+      const T gs = T(double(grad_scale) * norm);
       double sum = 0;
-      for (size_t q = size_t(r) * cw; q < size_t(r + 1) * cw; ++q) {
-        const T mu1 = mx[q], mu2 = my[q];
-        const T s11 = sxx[q] - mu1 * mu1, s22 = syy[q] - mu2 * mu2, s12 = sxy[q] - mu1 * mu2;
+      for (int i = 0; i < cw; ++i) {
+        const T mu1 = mx[i], mu2 = my[i];
+        const T s11 = sxx[i] - mu1 * mu1, s22 = syy[i] - mu2 * mu2, s12 = sxy[i] - mu1 * mu2;
         const T A1 = 2 * mu1 * mu2 + C1, A2 = 2 * s12 + C2;
         const T B1 = mu1 * mu1 + mu2 * mu2 + C1, B2 = s11 + s22 + C2;
         const T s = (A1 * A2) / (B1 * B2);
         sum += double(s);
-        if (map) (*map)[pix(q) * ch + k] = s;
-        if (grad_scale != T(0)) {
+        if (map) (*map)[((size_t(ry0) + r) * w + rx0 + size_t(i)) * ch + k] = s;
+        if (grad) {
           // d s / d mu1, d s / d s11 (sigma_x^2), d s / d s12; scaled by grad_scale / count.
-          const T gs = T(double(grad_scale) * norm);
           const T d_mu1 = (2 * mu2 * A2) / (B1 * B2) - s * (2 * mu1) / B1;
           const T d_s11 = -s / B2;
           const T d_s12 = 2 * A1 / (B1 * B2);
           // s11 = E[x^2] - mu1^2, s12 = E[xy] - mu1 mu2: back to the blurred maps.
-          a[q] = gs * (d_mu1 - 2 * mu1 * d_s11 - mu2 * d_s12);  // d/d mx
-          b[q] = gs * d_s11;                                    // d/d E[x^2]
-          c[q] = gs * d_s12;                                    // d/d E[xy]
+          a[i] = gs * (d_mu1 - 2 * mu1 * d_s11 - mu2 * d_s12);  // d/d mx
+          b[i] = gs * d_s11;                                    // d/d E[x^2]
+          c[i] = gs * d_s12;                                    // d/d E[xy]
         }
       }
       row_sum[size_t(r)] = sum;
+      if (grad) {
+        const size_t q0 = size_t(r) * cw;
+        blur.h(a, ha + q0, cw);
+        blur.h(b, hb + q0, cw);
+        blur.h(c, hc + q0, cw);
+      }
     }
     for (double v : row_sum) total += v;
-    if (grad_scale != T(0)) {
-      blur(a, mx, tmp, cw, chh);
-      blur(b, sxx, tmp, cw, chh);
-      blur(c, sxy, tmp, cw, chh);
+    if (grad) {
 #pragma omp parallel for schedule(static) if (par)
       for (int r = 0; r < chh; ++r) {
+        thread_local SsimRows<T> rows;
+        T *ba = rows.row(0, cw), *bb = rows.row(1, cw), *bc = rows.row(2, cw);
+        blur.v(ha, ba, cw, chh, r);
+        blur.v(hb, bb, cw, chh, r);
+        blur.v(hc, bc, cw, chh, r);
         T* dr = dx + ((size_t(ry0) + r) * w + rx0) * ch + k;
         const size_t q0 = size_t(r) * cw;
-        for (int i = 0; i < cw; ++i) {
-          const size_t q = q0 + i;
-          dr[size_t(i) * ch] += mx[q] + 2 * X[q] * sxx[q] + Y[q] * sxy[q];
-        }
+        for (int i = 0; i < cw; ++i)
+          dr[size_t(i) * ch] += ba[i] + 2 * X[q0 + i] * bb[i] + Y[q0 + i] * bc[i];
       }
     }
   }
