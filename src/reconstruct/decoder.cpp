@@ -190,7 +190,8 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
   }
   ggeo_.zero_like(geo_);
   if (texel0_used_) {
-    if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_)
+    if (!parallel_equal(xs, noted_xs_) || !parallel_equal(ys, noted_ys_) ||
+        !parallel_equal(zs, noted_zs_))
       throw Error("Decoder::backward: the points differ from the last decode's");
     if (!joint_) gapp_.zero_like(app_);
     const Mlp* mlps[2] = {&geo_, &app_};
@@ -218,7 +219,8 @@ void Decoder::backward(const std::vector<float>& xs, const std::vector<float>& y
                       feats_.data());
   }
   // Only texels of the touched set are ever written (the points are the last decode's).
-  if (xs != noted_xs_ || ys != noted_ys_ || zs != noted_zs_)
+  if (!parallel_equal(xs, noted_xs_) || !parallel_equal(ys, noted_ys_) ||
+      !parallel_equal(zs, noted_zs_))
     throw Error("Decoder::backward: the points differ from the last decode's");
   const auto& R = touched_ranges_;
 #pragma omp parallel for schedule(dynamic, 16)

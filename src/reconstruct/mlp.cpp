@@ -172,7 +172,7 @@ void forward_avx2(const ForwardJob* jobs, int count, const Eigen::Ref<const MlpT
     pks[size_t(q)].pack(*jobs[q].m, false);
   }
   const Eigen::Index blocks = (n + kBlock - 1) / kBlock;
-#pragma omp parallel for schedule(static) if (blocks > 1)
+#pragma omp parallel for schedule(dynamic, 1) if (blocks > 1)
   for (Eigen::Index bi = 0; bi < blocks; ++bi) {
     const Eigen::Index c0 = bi * kBlock, c1 = std::min(c0 + kBlock, n);
     for (Eigen::Index s0 = c0; s0 < c1; s0 += kSub) {
@@ -267,7 +267,7 @@ void backward_avx2(BackwardJob* jobs, int count, MlpT<float>::Mat* dX, const flo
     }
     parts[size_t(q)].resize(size_t(blocks) * J.per_block);
   }
-#pragma omp parallel for schedule(static) if (blocks > 1)
+#pragma omp parallel for schedule(dynamic, 1) if (blocks > 1)
   for (Eigen::Index bi = 0; bi < blocks; ++bi) {
     for (int q = 0; q < count; ++q) {
       float* pb = parts[size_t(q)].data() + size_t(bi) * jobs[q].per_block;
