@@ -12,21 +12,28 @@ namespace ks {
 
 inline constexpr size_t kParallelMin = size_t(1) << 16;
 
+// f(b, e) over [0, n) in chunks, over the threads when n >= kParallelMin (else one call); true
+// when every call returned true.
+template <class F>
+bool for_chunks(size_t n, F&& f) {
+  if (n < kParallelMin) return f(size_t(0), n);
+  constexpr size_t kChunk = size_t(1) << 15;
+  const long chunks = long((n + kChunk - 1) / kChunk);
+  bool all = true;
+#pragma omp parallel for schedule(static) reduction(&& : all)
+  for (long c = 0; c < chunks; ++c)
+    all = f(size_t(c) * kChunk, std::min(n, size_t(c + 1) * kChunk)) && all;
+  return all;
+}
+
 // dst[0, n) = src[0, n) (the ranges do not overlap).
 template <class T>
 void parallel_copy(const T* src, size_t n, T* dst) {
   static_assert(std::is_trivially_copyable_v<T>);
-  if (n < kParallelMin) {
-    if (n) std::memcpy(dst, src, n * sizeof(T));
-    return;
-  }
-  constexpr size_t kChunk = size_t(1) << 15;
-  const long chunks = long((n + kChunk - 1) / kChunk);
-#pragma omp parallel for schedule(static)
-  for (long c = 0; c < chunks; ++c) {
-    const size_t b = size_t(c) * kChunk, e = std::min(n, b + kChunk);
-    std::memcpy(dst + b, src + b, (e - b) * sizeof(T));
-  }
+  for_chunks(n, [&](size_t b, size_t e) {
+    if (e > b) std::memcpy(dst + b, src + b, (e - b) * sizeof(T));
+    return true;
+  });
 }
 
 // dst = src, as std::vector's assignment leaves it (size and contents).
@@ -40,34 +47,19 @@ void parallel_assign(std::vector<T>& dst, const std::vector<T>& src) {
 // dst[0, n) = v.
 template <class T>
 void parallel_fill(T* dst, size_t n, T v) {
-  if (n < kParallelMin) {
-    std::fill(dst, dst + n, v);
-    return;
-  }
-  constexpr size_t kChunk = size_t(1) << 15;
-  const long chunks = long((n + kChunk - 1) / kChunk);
-#pragma omp parallel for schedule(static)
-  for (long c = 0; c < chunks; ++c) {
-    const size_t b = size_t(c) * kChunk, e = std::min(n, b + kChunk);
+  for_chunks(n, [&](size_t b, size_t e) {
     std::fill(dst + b, dst + e, v);
-  }
+    return true;
+  });
 }
 
 // a == b, as std::vector's operator== says (sizes equal, then every element ==).
 template <class T>
 bool parallel_equal(const std::vector<T>& a, const std::vector<T>& b) {
   if (a.size() != b.size()) return false;
-  const size_t n = a.size();
-  if (n < kParallelMin) return std::equal(a.begin(), a.end(), b.begin());
-  constexpr size_t kChunk = size_t(1) << 15;
-  const long chunks = long((n + kChunk - 1) / kChunk);
-  bool differ = false;
-#pragma omp parallel for schedule(static) reduction(|| : differ)
-  for (long c = 0; c < chunks; ++c) {
-    const size_t b0 = size_t(c) * kChunk, e = std::min(n, b0 + kChunk);
-    differ = differ || !std::equal(a.begin() + long(b0), a.begin() + long(e), b.begin() + long(b0));
-  }
-  return !differ;
+  return for_chunks(a.size(), [&](size_t b0, size_t e) {
+    return std::equal(a.begin() + long(b0), a.begin() + long(e), b.begin() + long(b0));
+  });
 }
 
 }  // namespace ks
