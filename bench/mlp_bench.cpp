@@ -3,7 +3,7 @@
 // Loop levels), forward and forward + backward (with dL/dX, as the trainer calls it), on 1 and 2
 // OpenMP threads; and the decoder's two heads on one input as the trainer runs them, one after the
 // other or as a pair (mlp_forward_pair / mlp_backward_pair).
-// KS_MLP_NO_AVX2=1 selects the Eigen path.
+// KS_MLP_NO_AVX2=1 selects the Eigen path; KS_MLP_NO_AVX512=1 the AVX2 kernels on an AVX-512 CPU.
 #include <benchmark/benchmark.h>
 #include <omp.h>
 

@@ -195,9 +195,9 @@ void forward_avx2(const ForwardJob* jobs, int count, const Eigen::Ref<const MlpT
           const bool last = l + 1 == L;
           float* dst = last ? Y.data() + s0 * out : cache.act[l + 1].data() + s0 * out;
           const float* src = l == 0 && !keep_input ? X->data() : cache.act[l].data();
-          mk::gemm_cols_avx2(pk.data.data() + pk.w[l], out, in, src + s0 * in, in, int(len), dst,
-                             out, last ? mk::Epilogue::kBias : mk::Epilogue::kBiasRelu,
-                             pk.data.data() + pk.b[l], nullptr, 0);
+          mk::gemm_cols(pk.data.data() + pk.w[l], out, in, src + s0 * in, in, int(len), dst, out,
+                        last ? mk::Epilogue::kBias : mk::Epilogue::kBiasRelu,
+                        pk.data.data() + pk.b[l], nullptr, 0);
         }
       }
     }
@@ -292,11 +292,11 @@ void backward_avx2(BackwardJob* jobs, int count, MlpT<float>::Mat* dX, const flo
           const int in = int(m.W[size_t(l)].cols()), out = int(m.W[size_t(l)].rows());
           const float* act = (l == 0 ? X0 : J.cache->act[size_t(l)].data()) + s0 * in;
           if (J.trans[size_t(l)]) {
-            mk::outer_acc_avx2(act, in, in, delta, ld, out, len, pb + J.gw[size_t(l)], nullptr);
-            mk::rowsum_acc_avx2(delta, ld, out, len, pb + J.gbo[size_t(l)]);
+            mk::outer_acc(act, in, in, delta, ld, out, len, pb + J.gw[size_t(l)], nullptr);
+            mk::rowsum_acc(delta, ld, out, len, pb + J.gbo[size_t(l)]);
           } else {
-            mk::outer_acc_avx2(delta, ld, out, act, in, in, len, pb + J.gw[size_t(l)],
-                               pb + J.gbo[size_t(l)]);
+            mk::outer_acc(delta, ld, out, act, in, in, len, pb + J.gw[size_t(l)],
+                          pb + J.gbo[size_t(l)]);
           }
           if (l == 0 && !dX) break;
           const bool to_d0 = J.stop > 0 && l == J.stop;
@@ -305,12 +305,12 @@ void backward_avx2(BackwardJob* jobs, int count, MlpT<float>::Mat* dX, const flo
                                : dX->data() + s0 * in;
           const Eigen::Index ldd = to_d0 ? J.ld0 : in;
           // l > 0: ReLU backward, the gradient passes where the layer's output act > 0.
-          mk::gemm_cols_avx2(
+          mk::gemm_cols(
               pk.data.data() + pk.w[size_t(l)], in, out, delta, ld, len, dst, ldd,
               l > 0 ? mk::Epilogue::kMask : (J.add_dx ? mk::Epilogue::kAdd : mk::Epilogue::kNone),
               nullptr, l > 0 ? act : nullptr, in);
           if (to_d0) {
-            mk::rowsum_acc_avx2(dst, ldd, in, len, pb + J.gbo[size_t(l - 1)]);
+            mk::rowsum_acc(dst, ldd, in, len, pb + J.gbo[size_t(l - 1)]);
             break;
           }
           delta = dst;

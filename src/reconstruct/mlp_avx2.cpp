@@ -38,11 +38,29 @@ bool use_avx2() {
     case Path::kEigen:
       return false;
     case Path::kAvx2:
+    case Path::kAvx512:
       return cpu_has_avx2_fma();
     case Path::kAuto:
       break;
   }
   return cpu_has_avx2_fma() && !env_off;
+}
+
+bool use_avx512() {
+  static const bool env_off = [] {
+    const char* e = std::getenv("KS_MLP_NO_AVX512");
+    return e != nullptr && e[0] != '\0' && e[0] != '0';
+  }();
+  switch (g_path) {
+    case Path::kEigen:
+    case Path::kAvx2:
+      return false;
+    case Path::kAvx512:
+      return cpu_has_avx512();
+    case Path::kAuto:
+      break;
+  }
+  return cpu_has_avx512() && use_avx2() && !env_off;
 }
 
 #if defined(KS_MLP_X86)

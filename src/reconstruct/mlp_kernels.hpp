@@ -1,7 +1,9 @@
 #pragma once
-// Hand-written AVX2+FMA kernels for the float decoder MLP (internal to reconstruct/mlp.cpp and
-// its tests). Plain pointers, no Eigen: mlp_avx2.cpp is compiled with per-function target
-// attributes, and Eigen code instantiated there with a different ISA would be an ODR hazard.
+// Hand-written AVX2+FMA and AVX-512 kernels for the float decoder MLP (internal to
+// reconstruct/mlp.cpp, the texel layer and their tests). Plain pointers, no Eigen: mlp_avx2.cpp
+// and mlp_avx512.cpp are compiled with per-function target attributes, and Eigen code
+// instantiated there with a different ISA would be an ODR hazard. The AVX-512 kernels accumulate
+// every element by the same operations in the same order as the AVX2 ones: the same bits.
 //
 // All matrices are column-major with one point per column ("point-major": a point's values are
 // contiguous); ld* is the distance between two points' columns in floats. Weight operands are
@@ -38,14 +40,50 @@ void outer_acc_avx2(const float* D, std::ptrdiff_t ldd, int rows, const float* X
 // gb += rowsum(D), D rows x n (leading dim ldd), gb with pad8(rows) entries; points in order.
 void rowsum_acc_avx2(const float* D, std::ptrdiff_t ldd, int rows, int n, float* gb);
 
-// True when the CPU has AVX2 and FMA.
-bool cpu_has_avx2_fma();
+// The same three on 16-wide vectors (mlp_avx512.cpp); the same results, bit for bit.
+void gemm_cols_avx512(const float* A, int rows, int k, const float* X, std::ptrdiff_t ldx, int n,
+                      float* Y, std::ptrdiff_t ldy, Epilogue epi, const float* bias, const float* M,
+                      std::ptrdiff_t ldm);
+void outer_acc_avx512(const float* D, std::ptrdiff_t ldd, int rows, const float* X,
+                      std::ptrdiff_t ldx, int k, int n, float* G, float* gb);
+void rowsum_acc_avx512(const float* D, std::ptrdiff_t ldd, int rows, int n, float* gb);
 
-// Which implementation mlp_forward / mlp_backward<float> use. kAuto: AVX2 when the CPU has
-// AVX2+FMA and KS_MLP_NO_AVX2 is not set, Eigen otherwise. The setter is for tests and
-// benchmarks (not thread-safe against concurrent MLP calls).
-enum class Path { kAuto, kEigen, kAvx2 };
+// True when the CPU has AVX2 and FMA; AVX-512F as well.
+bool cpu_has_avx2_fma();
+bool cpu_has_avx512();
+
+// Which implementation mlp_forward / mlp_backward<float> use. kAuto: AVX-512 when the CPU has
+// it and KS_MLP_NO_AVX512 is not set, else AVX2 when the CPU has AVX2+FMA and KS_MLP_NO_AVX2 is
+// not set, Eigen otherwise; kAvx2: the AVX2 kernels even on an AVX-512 CPU. The setter is for
+// tests and benchmarks (not thread-safe against concurrent MLP calls).
+enum class Path { kAuto, kEigen, kAvx2, kAvx512 };
 void set_path(Path p);
+// use_avx2(): the hand-written kernels (either width) rather than Eigen; use_avx512(): of those,
+// the 16-wide ones.
 bool use_avx2();
+bool use_avx512();
+
+// The kernels above of the width use_avx512() picks (callers check use_avx2() first).
+inline void gemm_cols(const float* A, int rows, int k, const float* X, std::ptrdiff_t ldx, int n,
+                      float* Y, std::ptrdiff_t ldy, Epilogue epi, const float* bias, const float* M,
+                      std::ptrdiff_t ldm) {
+  if (use_avx512())
+    gemm_cols_avx512(A, rows, k, X, ldx, n, Y, ldy, epi, bias, M, ldm);
+  else
+    gemm_cols_avx2(A, rows, k, X, ldx, n, Y, ldy, epi, bias, M, ldm);
+}
+inline void outer_acc(const float* D, std::ptrdiff_t ldd, int rows, const float* X,
+                      std::ptrdiff_t ldx, int k, int n, float* G, float* gb) {
+  if (use_avx512())
+    outer_acc_avx512(D, ldd, rows, X, ldx, k, n, G, gb);
+  else
+    outer_acc_avx2(D, ldd, rows, X, ldx, k, n, G, gb);
+}
+inline void rowsum_acc(const float* D, std::ptrdiff_t ldd, int rows, int n, float* gb) {
+  if (use_avx512())
+    rowsum_acc_avx512(D, ldd, rows, n, gb);
+  else
+    rowsum_acc_avx2(D, ldd, rows, n, gb);
+}
 
 }  // namespace ks::mlp_kernels

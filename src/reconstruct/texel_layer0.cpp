@@ -166,9 +166,9 @@ void TexelLayer0::forward(const Triplane& tp, const Mlp* const* mlps, int count,
 #pragma omp parallel for schedule(dynamic, 1)
   for (int c = 0; c < chunks; ++c)
     for_runs(c * kChunk, std::min(rows_, (c + 1) * kChunk), [&](const Run& run, int a, int b) {
-      mk::gemm_cols_avx2(a_.data() + size_t(run.plane) * H * C, H, C,
-                         texel(tp.planes.data(), run, a, C), C, b - a, q_.data() + size_t(a) * H, H,
-                         mk::Epilogue::kNone, nullptr, nullptr, 0);
+      mk::gemm_cols(a_.data() + size_t(run.plane) * H * C, H, C, texel(tp.planes.data(), run, a, C),
+                    C, b - a, q_.data() + size_t(a) * H, H, mk::Epilogue::kNone, nullptr, nullptr,
+                    0);
     });
   // Each point: the bias plus its twelve texels' rows of Q, blended; the ReLU; out to the caches.
   const int h0 = int(mlps[0]->W[0].rows());
@@ -207,11 +207,10 @@ void TexelLayer0::backward(const Triplane& tp, const Mlp* const* mlps, int count
                              H, dq.data());
         for_runs(a2, b2, [&](const Run& run, int ra, int rb) {
           const float* dqa = dq.data() + size_t(ra - a2) * H;
-          mk::outer_acc_avx2(dqa, H, H, texel(tp.planes.data(), run, ra, C), C, C, rb - ra, part,
-                             nullptr);
-          mk::gemm_cols_avx2(at_.data() + size_t(p) * C * H, C, H, dqa, H, rb - ra,
-                             texel(dplanes, run, ra, C), C, mk::Epilogue::kNone, nullptr, nullptr,
-                             0);
+          mk::outer_acc(dqa, H, H, texel(tp.planes.data(), run, ra, C), C, C, rb - ra, part,
+                        nullptr);
+          mk::gemm_cols(at_.data() + size_t(p) * C * H, C, H, dqa, H, rb - ra,
+                        texel(dplanes, run, ra, C), C, mk::Epilogue::kNone, nullptr, nullptr, 0);
         });
       }
     }

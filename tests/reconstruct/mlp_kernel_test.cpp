@@ -107,6 +107,87 @@ TEST(MlpKernels, OddShapesMatchEigen) {
   }
 }
 
+#define SKIP_WITHOUT_AVX512() \
+  if (!mk::cpu_has_avx512()) GTEST_SKIP() << "CPU has no AVX-512"
+
+// The AVX-512 kernels give the AVX2 kernels' bits through the whole MLP, forward and backward.
+TEST(MlpKernels, Avx512GivesTheAvx2Bits) {
+  SKIP_WITHOUT_AVX512();
+  const std::vector<std::vector<int>> shapes = {{96, 32, 32, 9}, {96, 32, 32, 3}, {96, 64, 64, 9},
+                                                {5, 7, 7, 1},    {17, 24, 1},     {5, 40, 40, 9}};
+  for (const auto& dims : shapes)
+    for (int n : {1, 7, 13, 2049}) {
+      SCOPED_TRACE(::testing::Message() << "hidden=" << dims[1] << " n=" << n);
+      Mlp m;
+      m.init(dims, 41, 0.5f);
+      std::mt19937_64 rng(42);
+      std::uniform_real_distribution<float> u(-1.f, 1.f);
+      for (auto& b : m.b)
+        for (int i = 0; i < b.size(); ++i) b(i) = 0.1f * u(rng);
+      Mlp::Mat X(dims.front(), n), dY(dims.back(), n);
+      fill_uniform(X, u, rng);
+      fill_uniform(dY, u, rng);
+      const Result a = run(m, X, dY, mk::Path::kAvx2, true);
+      const Result b = run(m, X, dY, mk::Path::kAvx512, true);
+      EXPECT_EQ(b.Y, a.Y);
+      EXPECT_EQ(b.dX, a.dX);
+      for (size_t l = 0; l < m.W.size(); ++l) {
+        EXPECT_EQ(b.g.W[l], a.g.W[l]) << l;
+        EXPECT_EQ(b.g.b[l], a.g.b[l]) << l;
+      }
+    }
+}
+
+// The kernels one by one, on strided operands, every epilogue, rows that end inside a vector of
+// either width and results accumulated onto what is there: the two widths agree bit for bit and
+// leave everything outside the output alone.
+TEST(MlpKernels, Avx512KernelsGiveTheAvx2Bits) {
+  SKIP_WITHOUT_AVX512();
+  std::mt19937_64 rng(51);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  auto random = [&](size_t count) {
+    std::vector<float> v(count);
+    for (float& x : v) x = u(rng);
+    return v;
+  };
+  for (int rows : {1, 5, 8, 16, 24, 32, 40, 64})
+    for (int k : {1, 3, 9, 32, 33})
+      for (int n : {1, 11, 12, 13, 40}) {
+        SCOPED_TRACE(::testing::Message() << "rows=" << rows << " k=" << k << " n=" << n);
+        const int lda = mk::pad8(rows);
+        const std::ptrdiff_t ldx = k + 3, ldy = rows + 5, ldm = rows + 2;
+        std::vector<float> A = random(size_t(lda) * k), bias = random(size_t(lda));
+        for (int j = 0; j < k; ++j)  // packed weights: the pad rows are zero
+          for (int r = rows; r < lda; ++r) A[size_t(j) * lda + r] = 0.f;
+        const std::vector<float> X = random(size_t(ldx) * n), M = random(size_t(ldm) * n);
+        const std::vector<float> Y0 = random(size_t(ldy) * n);
+        for (mk::Epilogue e : {mk::Epilogue::kNone, mk::Epilogue::kBias, mk::Epilogue::kBiasRelu,
+                               mk::Epilogue::kMask, mk::Epilogue::kAdd}) {
+          std::vector<float> y2 = Y0, y5 = Y0;
+          mk::gemm_cols_avx2(A.data(), rows, k, X.data(), ldx, n, y2.data(), ldy, e, bias.data(),
+                             M.data(), ldm);
+          mk::gemm_cols_avx512(A.data(), rows, k, X.data(), ldx, n, y5.data(), ldy, e, bias.data(),
+                               M.data(), ldm);
+          EXPECT_EQ(y5, y2) << "epilogue " << int(e);
+        }
+        // G (rows x k, packed) += D X^T and the bias gradient, onto earlier values.
+        const std::ptrdiff_t ldd = rows + 1;
+        const std::vector<float> D = random(size_t(ldd) * n);
+        std::vector<float> G0 = random(size_t(lda) * k), gb0 = random(size_t(lda));
+        for (int j = 0; j < k; ++j)
+          for (int r = rows; r < lda; ++r) G0[size_t(j) * lda + r] = 0.f;
+        for (int r = rows; r < lda; ++r) gb0[size_t(r)] = 0.f;
+        std::vector<float> g2 = G0, g5 = G0, b2 = gb0, b5 = gb0;
+        mk::outer_acc_avx2(D.data(), ldd, rows, X.data(), ldx, k, n, g2.data(), b2.data());
+        mk::outer_acc_avx512(D.data(), ldd, rows, X.data(), ldx, k, n, g5.data(), b5.data());
+        EXPECT_EQ(g5, g2);
+        EXPECT_EQ(b5, b2);
+        mk::rowsum_acc_avx2(D.data(), ldd, rows, n, b2.data());
+        mk::rowsum_acc_avx512(D.data(), ldd, rows, n, b5.data());
+        EXPECT_EQ(b5, b2);
+      }
+}
+
 // Gradients accumulate into g (as the Eigen path does) and do not depend on the thread count.
 TEST(MlpKernels, AccumulatesAndIsThreadCountIndependent) {
   SKIP_WITHOUT_AVX2();

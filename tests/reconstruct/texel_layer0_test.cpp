@@ -15,6 +15,7 @@
 #include "core/error.hpp"
 #include "reconstruct/decoder.hpp"
 #include "reconstruct/decoder_fixture.hpp"
+#include "reconstruct/mlp_kernels.hpp"
 
 namespace ks {
 namespace {
@@ -125,6 +126,23 @@ TEST(TexelLayer0, SameBitsOnOneThreadAndTwo) {
   EXPECT_EQ(one.g.means, two.g.means);
   EXPECT_EQ(one.g.sh, two.g.sh);
   for (size_t k = 0; k < one.grads.size(); ++k) EXPECT_EQ(one.grads[k], two.grads[k]) << k;
+}
+
+// The MLP kernels' two widths (mlp_kernels.hpp) give the same bits through the texel layer.
+TEST(TexelLayer0, Avx512KernelsGiveTheAvx2Bits) {
+  const DecoderFixture f;
+  const DecoderOptions o = options(false);
+  if (!available(o)) GTEST_SKIP() << "no AVX2/FMA: the texel-space path is not taken";
+  if (!mlp_kernels::cpu_has_avx512()) GTEST_SKIP() << "CPU has no AVX-512";
+  mlp_kernels::set_path(mlp_kernels::Path::kAvx2);
+  const Outcome a = run(f, o, TexelLayer0::Path::kAuto);
+  mlp_kernels::set_path(mlp_kernels::Path::kAvx512);
+  const Outcome b = run(f, o, TexelLayer0::Path::kAuto);
+  mlp_kernels::set_path(mlp_kernels::Path::kAuto);
+  EXPECT_EQ(a.g.means, b.g.means);
+  EXPECT_EQ(a.g.sh, b.g.sh);
+  EXPECT_EQ(a.offsets, b.offsets);
+  for (size_t k = 0; k < a.grads.size(); ++k) EXPECT_EQ(a.grads[k], b.grads[k]) << a.names[k];
 }
 
 // The backward leaves its texel gradients zeroed for the next one: a second step of the same
