@@ -174,10 +174,12 @@ void TexelLayer0::forward(const Triplane& tp, const Mlp* const* mlps, int count,
   const int h0 = int(mlps[0]->W[0].rows());
   float* out1 = count > 1 ? caches[1]->act[1].data() : nullptr;
   const int tasks = (n + kPoints - 1) / kPoints;
+  const auto blend = mk::use_avx512() && H % 16 == 0 && h0 % 16 == 0 ? tk::blend_range_avx512
+                                                                     : tk::blend_range_avx2;
 #pragma omp parallel for schedule(dynamic, 1) if (tasks > 1)
   for (int t = 0; t < tasks; ++t)
-    tk::blend_range_avx2(taps_.data(), n, q_.data(), H, bias_.data(), t * kPoints,
-                         std::min(n, (t + 1) * kPoints), caches[0]->act[1].data(), h0, out1);
+    blend(taps_.data(), n, q_.data(), H, bias_.data(), t * kPoints, std::min(n, (t + 1) * kPoints),
+          caches[0]->act[1].data(), h0, out1);
 }
 
 void TexelLayer0::backward(const Triplane& tp, const Mlp* const* mlps, int count, const float* d0,
@@ -192,6 +194,8 @@ void TexelLayer0::backward(const Triplane& tp, const Mlp* const* mlps, int count
   // memory.
   const size_t per = size_t(H) * size_t(C);
   partials_.resize(size_t(chunks) * 3 * per);
+  const auto gather =
+      mk::use_avx512() && H % 16 == 0 ? tk::gather_rows_avx512 : tk::gather_rows_avx2;
 #pragma omp parallel for schedule(dynamic, 1)
   for (int c = 0; c < chunks; ++c) {
     static thread_local std::vector<float> dq;
@@ -203,8 +207,7 @@ void TexelLayer0::backward(const Triplane& tp, const Mlp* const* mlps, int count
       float* part = partials_.data() + (size_t(c) * 3 + size_t(p)) * per;
       for (int a2 = a; a2 < b; a2 += kSub) {
         const int b2 = std::min(b, a2 + kSub);
-        tk::gather_rows_avx2(row_start_.data(), row_point_.data(), row_weight_.data(), a2, b2, d0,
-                             H, dq.data());
+        gather(row_start_.data(), row_point_.data(), row_weight_.data(), a2, b2, d0, H, dq.data());
         for_runs(a2, b2, [&](const Run& run, int ra, int rb) {
           const float* dqa = dq.data() + size_t(ra - a2) * H;
           mk::outer_acc(dqa, H, H, texel(tp.planes.data(), run, ra, C), C, C, rb - ra, part,

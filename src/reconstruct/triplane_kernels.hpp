@@ -101,5 +101,11 @@ void blend_range_avx2(const Taps* taps, int n, const float* Q, int H, const floa
 // leading dim H.
 void gather_rows_avx2(const int* start, const int* point, const float* weight, int r0, int r1,
                       const float* d, int H, float* out);
+// The same two sixteen channels a vector (triplane_avx512.cpp), for H and h0 multiples of 16:
+// the same bits.
+void blend_range_avx512(const Taps* taps, int n, const float* Q, int H, const float* bias, int i0,
+                        int i1, float* out0, int h0, float* out1);
+void gather_rows_avx512(const int* start, const int* point, const float* weight, int r0, int r1,
+                        const float* d, int H, float* out);
 
 }  // namespace ks::triplane_kernels

@@ -128,7 +128,8 @@ TEST(TexelLayer0, SameBitsOnOneThreadAndTwo) {
   for (size_t k = 0; k < one.grads.size(); ++k) EXPECT_EQ(one.grads[k], two.grads[k]) << k;
 }
 
-// The MLP kernels' two widths (mlp_kernels.hpp) give the same bits through the texel layer.
+// The MLP kernels' two widths (mlp_kernels.hpp; the texel layer's blend and gather follow their
+// choice) give the same bits through the texel layer.
 TEST(TexelLayer0, Avx512KernelsGiveTheAvx2Bits) {
   const DecoderFixture f;
   const DecoderOptions o = options(false);
