@@ -89,8 +89,9 @@ namespace {
 // inside (it does not nest its own threads in a parallel region). Per-block weight gradients are
 // summed in block order, so results do not depend on the thread count.
 constexpr Eigen::Index kBlock = 2048;
-// The AVX2 path walks a block in sub-blocks of this many points through all layers, so that a
-// sub-block's activations and deltas stay in L1/L2 (a multiple of the kernels' 6 / 12 points).
+// The SIMD path (AVX2 or AVX-512 kernels) walks a block in sub-blocks of this many points through
+// all layers, so that a sub-block's activations and deltas stay in L1/L2 (a multiple of the
+// kernels' 6 / 12 points).
 constexpr Eigen::Index kSub = 48;
 
 namespace mk = mlp_kernels;
@@ -159,7 +160,7 @@ struct ForwardJob {
 // that the later ones read the sub-block's input from L1); each job's results are those of a
 // forward of its MLP alone. first > 0: only the layers from `first` on, each job's input being
 // its cache.act[first] (filled by the caller; X is then unused and the buffers already sized).
-void forward_avx2(const ForwardJob* jobs, int count, const Eigen::Ref<const MlpT<float>::Mat>* X,
+void forward_simd(const ForwardJob* jobs, int count, const Eigen::Ref<const MlpT<float>::Mat>* X,
                   Eigen::Index n, bool keep_input, int first = 0) {
   // Caller-thread scratch, reused across calls; the OpenMP workers use it through this reference
   // (naming the thread_local inside the parallel region would give each worker its own copy).
@@ -206,7 +207,7 @@ void forward_avx2(const ForwardJob* jobs, int count, const Eigen::Ref<const MlpT
 
 // One MLP of a backward over a shared input: its forward's cache, the gradient of its output, its
 // gradients, whether it adds its input gradient to dX (else writes it), and the layout of its
-// per-block gradient partials (filled by backward_avx2).
+// per-block gradient partials (filled by backward_simd).
 struct BackwardJob {
   BackwardJob(const MlpT<float>* m_, const MlpCacheT<float>* cache_,
               const Eigen::Ref<const MlpT<float>::Mat>* dY_, MlpGradsT<float>* g_, bool add_dx_)
@@ -231,9 +232,9 @@ struct BackwardJob {
 // The MLPs of `jobs`, whose forwards read the same input X0, a sub-block of points through each
 // in turn (their input gradients are written / added to dX in job order); each job's gradients
 // are those of a backward of its MLP alone.
-void backward_avx2(BackwardJob* jobs, int count, MlpT<float>::Mat* dX, const float* X0) {
+void backward_simd(BackwardJob* jobs, int count, MlpT<float>::Mat* dX, const float* X0) {
   const Eigen::Index n = (*jobs[0].dY).cols();
-  // Caller-thread scratch (see forward_avx2): transposed weights for din = W^T delta, and the
+  // Caller-thread scratch (see forward_simd): transposed weights for din = W^T delta, and the
   // per-block gradient partials.
   static thread_local std::vector<Packed> packed;
   static thread_local std::vector<std::vector<float>> partials;
@@ -352,7 +353,7 @@ void mlp_forward(const MlpT<T>& m, const Eigen::Ref<const typename MlpT<T>::Mat>
   if constexpr (std::is_same_v<T, float>) {
     if (mk::use_avx2()) {
       const ForwardJob job{&m, &cache, &Y};
-      forward_avx2(&job, 1, &X, X.cols(), keep_input);
+      forward_simd(&job, 1, &X, X.cols(), keep_input);
       return;
     }
   }
@@ -397,7 +398,7 @@ void mlp_backward(const MlpT<T>& m, const MlpCacheT<T>& cache,
   if constexpr (std::is_same_v<T, float>) {
     if (mk::use_avx2()) {
       BackwardJob job(&m, &cache, &dY, &g, add_dx);
-      backward_avx2(&job, 1, dX, X0);
+      backward_simd(&job, 1, dX, X0);
       return;
     }
   }
@@ -487,7 +488,7 @@ void mlp_forward_pair(const MlpT<T>& a, const MlpT<T>& b,
   if constexpr (std::is_same_v<T, float>) {
     if (mk::use_avx2()) {
       const ForwardJob jobs[2] = {{&a, &cache_a, &Ya}, {&b, &cache_b, &Yb}};
-      forward_avx2(jobs, 2, &X, X.cols(), false);
+      forward_simd(jobs, 2, &X, X.cols(), false);
       return;
     }
   }
@@ -510,7 +511,7 @@ void mlp_backward_pair(const MlpT<T>& a, const MlpCacheT<T>& cache_a,
         throw Error("mlp_backward_pair: the two MLPs do not share one input");
       BackwardJob jobs[2] = {BackwardJob(&a, &cache_a, &dYa, &ga, false),
                              BackwardJob(&b, &cache_b, &dYb, &gb, true)};
-      backward_avx2(jobs, 2, &dX, X);
+      backward_simd(jobs, 2, &dX, X);
       return;
     }
   }
@@ -536,7 +537,7 @@ void mlp_forward_tail(const Mlp* const* m, MlpCache* const* cache, Mlp::Mat* con
       throw Error("mlp_forward_tail: buffers not sized by mlp_tail_buffers for this MLP");
     jobs.push_back({m[q], cache[q], Y[q]});
   }
-  if (count > 0) forward_avx2(jobs.data(), count, nullptr, Y[0]->cols(), false, 1);
+  if (count > 0) forward_simd(jobs.data(), count, nullptr, Y[0]->cols(), false, 1);
 }
 
 void mlp_backward_tail(const Mlp* const* m, const MlpCache* const* cache, const Mlp::Mat* const* dY,
@@ -554,7 +555,7 @@ void mlp_backward_tail(const Mlp* const* m, const MlpCache* const* cache, const 
     J.stop = 1, J.d0 = d0[q], J.ld0 = ld0;
     jobs.push_back(J);
   }
-  if (count > 0) backward_avx2(jobs.data(), count, nullptr, nullptr);
+  if (count > 0) backward_simd(jobs.data(), count, nullptr, nullptr);
 }
 
 template void mlp_forward(const MlpT<float>&, const Eigen::Ref<const MlpT<float>::Mat>&,

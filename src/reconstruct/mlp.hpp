@@ -4,8 +4,9 @@
 // the triplane writes). Hidden layers use ReLU; the output layer is linear (the decoders apply
 // their own output activations, see decoder.hpp).
 // The float instantiation uses AVX2+FMA kernels (mlp_kernels.hpp) when the CPU has them, unless
-// KS_MLP_NO_AVX2=1; results then differ from the Eigen path by float rounding only. Either way
-// they do not depend on the OpenMP thread count.
+// KS_MLP_NO_AVX2=1 (their AVX-512 width, the same bits, where it has AVX-512 and
+// KS_MLP_NO_AVX512 is not set); results then differ from the Eigen path by float rounding only.
+// Either way they do not depend on the OpenMP thread count.
 #include <Eigen/Core>
 #include <cstdint>
 #include <vector>
