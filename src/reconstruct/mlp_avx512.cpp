@@ -222,23 +222,9 @@ KS_AVX512 void outer_acc_impl(const float* D, ptrdiff_t ldd, int rows, const flo
 void gemm_cols_avx512(const float* A, int rows, int k, const float* X, std::ptrdiff_t ldx, int n,
                       float* Y, std::ptrdiff_t ldy, Epilogue epi, const float* bias, const float* M,
                       std::ptrdiff_t ldm) {
-  switch (epi) {
-    case Epilogue::kNone:
-      gemm_cols_impl<Epilogue::kNone>(A, rows, k, X, ldx, n, Y, ldy, bias, M, ldm);
-      break;
-    case Epilogue::kBias:
-      gemm_cols_impl<Epilogue::kBias>(A, rows, k, X, ldx, n, Y, ldy, bias, M, ldm);
-      break;
-    case Epilogue::kBiasRelu:
-      gemm_cols_impl<Epilogue::kBiasRelu>(A, rows, k, X, ldx, n, Y, ldy, bias, M, ldm);
-      break;
-    case Epilogue::kMask:
-      gemm_cols_impl<Epilogue::kMask>(A, rows, k, X, ldx, n, Y, ldy, bias, M, ldm);
-      break;
-    case Epilogue::kAdd:
-      gemm_cols_impl<Epilogue::kAdd>(A, rows, k, X, ldx, n, Y, ldy, bias, M, ldm);
-      break;
-  }
+  with_epilogue(epi, [&](auto e) {
+    gemm_cols_impl<decltype(e)::value>(A, rows, k, X, ldx, n, Y, ldy, bias, M, ldm);
+  });
 }
 
 void outer_acc_avx512(const float* D, std::ptrdiff_t ldd, int rows, const float* X,

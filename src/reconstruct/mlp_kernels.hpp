@@ -9,6 +9,7 @@
 // contiguous); ld* is the distance between two points' columns in floats. Weight operands are
 // packed with their row count padded to a multiple of 8 (pad rows are zero), 32-byte aligned.
 #include <cstddef>
+#include <type_traits>
 
 namespace ks::mlp_kernels {
 
@@ -24,6 +25,23 @@ enum class Epilogue {
   kMask,      // Y = (M > 0) ? A X : 0   (ReLU backward, M = the layer's ReLU output)
   kAdd,       // Y = A X + Y   (the product finished first, then one addition per element)
 };
+
+// f(std::integral_constant<Epilogue, e>{}): a kernel's epilogue as a template argument.
+template <class F>
+inline void with_epilogue(Epilogue e, F&& f) {
+  switch (e) {
+    case Epilogue::kNone:
+      return f(std::integral_constant<Epilogue, Epilogue::kNone>{});
+    case Epilogue::kBias:
+      return f(std::integral_constant<Epilogue, Epilogue::kBias>{});
+    case Epilogue::kBiasRelu:
+      return f(std::integral_constant<Epilogue, Epilogue::kBiasRelu>{});
+    case Epilogue::kMask:
+      return f(std::integral_constant<Epilogue, Epilogue::kMask>{});
+    case Epilogue::kAdd:
+      return f(std::integral_constant<Epilogue, Epilogue::kAdd>{});
+  }
+}
 
 // Y(:, p) = epilogue(A X(:, p)) for p in [0, n). A is rows x k, packed as A[j * pad8(rows) + r];
 // bias (kBias*) has pad8(rows) entries; M (kMask) has the layout of Y with leading dim ldm.

@@ -55,18 +55,29 @@ double rel_diff(const Mlp::Mat& a, const Mlp::Mat& b) {
   return double((a - b).cwiseAbs().maxCoeff()) / scale;
 }
 
+// An MLP of these layer widths with small random biases, and an input and output gradient of n
+// points drawn from seed.
+struct Case {
+  Mlp m;
+  Mlp::Mat X, dY;
+  Case(const std::vector<int>& dims, int n, uint64_t seed)
+      : X(dims.front(), n), dY(dims.back(), n) {
+    m.init(dims, seed, 0.5f);
+    std::mt19937_64 rng(seed + 1);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    for (auto& b : m.b)
+      for (int i = 0; i < b.size(); ++i) b(i) = 0.1f * u(rng);
+    fill_uniform(X, u, rng);
+    fill_uniform(dY, u, rng);
+  }
+};
+
 void compare(const std::vector<int>& dims, int n, uint64_t seed) {
   SCOPED_TRACE(::testing::Message() << "dims in=" << dims.front() << " hidden=" << dims[1]
                                     << " out=" << dims.back() << " n=" << n);
-  Mlp m;
-  m.init(dims, seed, 0.5f);
-  std::mt19937_64 rng(seed + 1);
-  std::uniform_real_distribution<float> u(-1.f, 1.f);
-  for (auto& b : m.b)
-    for (int i = 0; i < b.size(); ++i) b(i) = 0.1f * u(rng);
-  Mlp::Mat X(dims.front(), n), dY(dims.back(), n);
-  fill_uniform(X, u, rng);
-  fill_uniform(dY, u, rng);
+  const Case c(dims, n, seed);
+  const Mlp& m = c.m;
+  const Mlp::Mat &X = c.X, &dY = c.dY;
   const Result ref = run(m, X, dY, mk::Path::kEigen, true);
   const Result got = run(m, X, dY, mk::Path::kAvx2, true);
   const double tol = 1e-5;
@@ -118,20 +129,12 @@ TEST(MlpKernels, Avx512GivesTheAvx2Bits) {
   for (const auto& dims : shapes)
     for (int n : {1, 7, 13, 2049}) {
       SCOPED_TRACE(::testing::Message() << "hidden=" << dims[1] << " n=" << n);
-      Mlp m;
-      m.init(dims, 41, 0.5f);
-      std::mt19937_64 rng(42);
-      std::uniform_real_distribution<float> u(-1.f, 1.f);
-      for (auto& b : m.b)
-        for (int i = 0; i < b.size(); ++i) b(i) = 0.1f * u(rng);
-      Mlp::Mat X(dims.front(), n), dY(dims.back(), n);
-      fill_uniform(X, u, rng);
-      fill_uniform(dY, u, rng);
-      const Result a = run(m, X, dY, mk::Path::kAvx2, true);
-      const Result b = run(m, X, dY, mk::Path::kAvx512, true);
+      const Case c(dims, n, 41);
+      const Result a = run(c.m, c.X, c.dY, mk::Path::kAvx2, true);
+      const Result b = run(c.m, c.X, c.dY, mk::Path::kAvx512, true);
       EXPECT_EQ(b.Y, a.Y);
       EXPECT_EQ(b.dX, a.dX);
-      for (size_t l = 0; l < m.W.size(); ++l) {
+      for (size_t l = 0; l < c.m.W.size(); ++l) {
         EXPECT_EQ(b.g.W[l], a.g.W[l]) << l;
         EXPECT_EQ(b.g.b[l], a.g.b[l]) << l;
       }
