@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <cstdlib>
 
+#include "core/env.hpp"
 #include "reconstruct/mlp_kernels.hpp"
 
 #if defined(__x86_64__) || defined(__i386__)
@@ -30,10 +31,7 @@ void set_path(Path p) {
 }
 
 bool use_avx2() {
-  static const bool env_off = [] {
-    const char* e = std::getenv("KS_MLP_NO_AVX2");
-    return e != nullptr && e[0] != '\0' && e[0] != '0';
-  }();
+  static const bool env_off = env_flag("KS_MLP_NO_AVX2");
   switch (g_path) {
     case Path::kEigen:
       return false;
@@ -47,10 +45,7 @@ bool use_avx2() {
 }
 
 bool use_avx512() {
-  static const bool env_off = [] {
-    const char* e = std::getenv("KS_MLP_NO_AVX512");
-    return e != nullptr && e[0] != '\0' && e[0] != '0';
-  }();
+  static const bool env_off = env_flag("KS_MLP_NO_AVX512");
   switch (g_path) {
     case Path::kEigen:
     case Path::kAvx2:

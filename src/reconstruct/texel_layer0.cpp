@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdlib>
 
+#include "core/env.hpp"
 #include "core/error.hpp"
 #include "reconstruct/mlp_kernels.hpp"
 #include "reconstruct/triplane_kernels.hpp"
@@ -37,10 +38,7 @@ int TexelLayer0::width(const Mlp* const* mlps, int count) {
 }
 
 bool TexelLayer0::available(const Triplane& tp, const Mlp* const* mlps, int count) {
-  static const bool env_off = [] {
-    const char* e = std::getenv("KS_DECODER_NO_TEXEL_LAYER0");
-    return e != nullptr && e[0] != '\0' && e[0] != '0';
-  }();
+  static const bool env_off = env_flag("KS_DECODER_NO_TEXEL_LAYER0");
   if (env_off || g_path == Path::kPoints || count < 1 || count > 2) return false;
   if (!mk::use_avx2() || !tk::use_avx2(tp.channels)) return false;
   for (int q = 0; q < count; ++q) {

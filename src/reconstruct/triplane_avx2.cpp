@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstdlib>
 
+#include "core/env.hpp"
 #include "reconstruct/mlp_kernels.hpp"
 #include "reconstruct/triplane_kernels.hpp"
 
@@ -23,10 +24,7 @@ void set_path(Path p) {
 }
 
 bool use_avx2(int channels) {
-  static const bool env_off = [] {
-    const char* e = std::getenv("KS_TRIPLANE_NO_AVX2");
-    return e != nullptr && e[0] != '\0' && e[0] != '0';
-  }();
+  static const bool env_off = env_flag("KS_TRIPLANE_NO_AVX2");
   if (channels % 8 != 0 || g_path == Path::kPortable || !mlp_kernels::cpu_has_avx2_fma())
     return false;
   return g_path == Path::kAvx2 || !env_off;
