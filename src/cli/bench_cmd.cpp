@@ -129,8 +129,8 @@ ks::cli::CommandGroup group(900, [](CLI::App& app) {
   sub->add_option("--frames", o->frames, "timed frames (median reported)")->capture_default_str();
   sub->add_option("--threads", o->threads, "OpenMP threads (0 = default)");
   sub->add_option("--kernel", o->kernel,
-                  "tile kernel: auto (AVX2 where the CPU has it, else baseline), baseline, avx2 "
-                  "or avx512 (an error where the CPU lacks it)")
+                  "tile kernel: auto (AVX-512 where the CPU has it, else AVX2 where it has that, "
+                  "else baseline), baseline, avx2 or avx512 (an error where the CPU lacks it)")
       ->check(CLI::IsMember({"auto", "baseline", "avx2", "avx512"}))
       ->capture_default_str();
   sub->add_option("--ply", o->ply,

@@ -429,20 +429,12 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y);
 // tiles_forward.cpp: front-to-back compositing of every tile.
 template <class T>
 void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* bg, Isa isa);
-// tiles_forward_avx512.cpp: one tile of the forward pass with AVX-512 (x86-64 only); full: also
-// the expected depth and the backward's state (not for an image_only forward).
-void composite_tile_avx512(RasterResultT<float>& out, int tile, int tiles_x, int W, int H,
-                           const float* bg, bool full);
 // tiles_backward.cpp: every tile in reverse order, screen-space gradients into per-thread
 // accumulators (kNG per Gaussian, `threads` buffers in gr.scratch).
 template <class T>
 void backward_tiles(const RasterResultT<T>& fwd, const ImageT<T>& dLdc, const ImageT<T>& dLda,
                     const T* bg, int tiles_x, int tiles_y, Isa isa, int threads,
                     RasterGradsT<T>& gr);
-// tiles_backward_avx512.cpp: one tile of the backward pass with AVX-512 (x86-64 only).
-void backward_tile_avx512(const RasterResultT<float>& fwd, const ImageT<float>& dLdc,
-                          const ImageT<float>& dLda, bool has_da, const float* bg, float* acc,
-                          int tile, int tiles_x, int W, int H);
 
 }  // namespace ks::raster
 

@@ -4,6 +4,7 @@
 
 #include <omp.h>
 
+#include "core/env.hpp"
 #include "raster/raster_internal.hpp"
 
 namespace ks {
@@ -42,11 +43,9 @@ Isa choose_isa(const RasterSettings& s) {
         throw Error("rasterizer: the AVX-512 kernel was asked for, but this CPU has no AVX-512");
       return Isa::kAvx512;
     default: {
-      // AVX2 first: its kernels walk blocks of 4 x 2 pixels Gaussian group by group and beat
-      // the AVX-512 row kernels on an AVX-512 CPU (rasterizer.hpp).
-      static const bool want512 = std::getenv("KS_RASTER_AVX512") != nullptr;
-      static const bool no2 = std::getenv("KS_RASTER_NO_AVX2") != nullptr;
-      if (want512 && raster_avx512_available()) return Isa::kAvx512;
+      static const bool no512 = env_flag("KS_RASTER_NO_AVX512");
+      static const bool no2 = env_flag("KS_RASTER_NO_AVX2");
+      if (raster_avx512_available() && !no512 && !no2) return Isa::kAvx512;
       if (raster_avx2_available() && !no2) return Isa::kAvx2;
       return Isa::kBaseline;
     }

@@ -23,12 +23,11 @@ namespace ks {
 constexpr int kTileSize = 16;
 
 // The CPU tile kernels: 4-pixel SSE2 chunks (the portable baseline), blocks of 4 x 2 pixels
-// with AVX2, or AVX-512 with a whole 16-pixel tile row per vector. kAuto takes AVX2 where the CPU
-// has it, else the baseline: on an AVX-512 Xeon the AVX2 kernels ran faster than the AVX-512 ones
-// (docs/rasterizer.md, "AVX-512 measured"); KS_RASTER_AVX512=1 makes kAuto take AVX-512 where
-// the CPU has it, KS_RASTER_NO_AVX2=1 the baseline. All give the same images; gradients agree up
-// to the order of their float sums. The double instantiation has one kernel (this setting is
-// ignored there).
+// with AVX2, or the same blocks with AVX-512VL (the AVX2 kernels' code with 32 vector registers
+// and mask registers). kAuto takes the best the CPU has (KS_RASTER_NO_AVX512=1 stops it at AVX2,
+// KS_RASTER_NO_AVX2=1 at the baseline). All give the same images; the AVX2 and AVX-512 kernels
+// the same gradients, the baseline's agree up to the order of their float sums. The double
+// instantiation has one kernel (this setting is ignored there).
 enum class RasterKernel { kAuto, kBaseline, kAvx2, kAvx512 };
 
 struct RasterSettings {

@@ -1,7 +1,7 @@
 // The rasterizer's backward tile pass (3DGS's render in backward.cu): every tile in reverse
 // depth order from the forward's final transmittance and last contributor per pixel, the
 // per-Gaussian screen-space gradients (mean2d, conic, opacity, rgb) reduced over the chunk
-// lanes into per-thread accumulators; baseline and AVX2 kernels side by side.
+// lanes into per-thread accumulators; baseline, AVX2 and AVX-512VL kernels side by side.
 #pragma GCC diagnostic ignored "-Wpsabi"
 #include <omp.h>
 
@@ -250,6 +250,15 @@ __attribute__((target("avx2"), flatten)) void backward_tile_avx2(const Res& fwd,
                                                                  const float* bg, float* acc,
                                                                  int tile, int tiles_x, int W,
                                                                  int H) {
+  backward_tile<4, 2, float>(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
+}
+
+// The AVX-512 kernel: the same code compiled with AVX-512VL (32 vector registers, comparisons
+// into mask registers), as the forward's; the same gradients bit for bit.
+template <class Res, class Img>
+__attribute__((target("avx2,avx512f,avx512dq,avx512bw,avx512vl"), flatten)) void
+backward_tile_avx512(const Res& fwd, const Img& dLdc, const Img& dLda, bool has_da, const float* bg,
+                     float* acc, int tile, int tiles_x, int W, int H) {
   backward_tile<4, 2, float>(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
 }
 

@@ -1,6 +1,7 @@
 // The rasterizer's forward tile pass (3DGS's render in forward.cu): front-to-back alpha
 // compositing of one 16 x 16 tile per task, with the baseline kernel (SSE2: chunks of 4 pixels of
-// a row) and an AVX2 kernel (blocks of 4 x 2 pixels) compiled side by side.
+// a row), an AVX2 kernel (blocks of 4 x 2 pixels) and the same with AVX-512VL compiled side by
+// side.
 #pragma GCC diagnostic ignored "-Wpsabi"
 #include <omp.h>
 
@@ -172,11 +173,10 @@ template <int BW, int BH, bool kFull, class T, class Res>
       // The list padded to whole groups with the empty slot (opacity 0: no pixel takes it).
       uint8_t* li = lists[blk];
       for (int i = cnt; i % kGroup; ++i) li[i] = uint8_t(kGather);
-      for (int i = 0; i < cnt; i += kGroup) {
-        // Each Gaussian's alpha over the block (independent of the pixels' state, so the
-        // group's exponentials overlap), then the group's compositing in list order.
-        V pw[kGroup], ex[kGroup], al[kGroup];
-        VI in[kGroup];
+      // Each Gaussian's alpha over the block (independent of the pixels' state, so the
+      // group's exponentials overlap).
+      const auto alphas = [&](int i, V* al, VI* in) {
+        V pw[kGroup], ex[kGroup];
         T mx[kGroup], my[kGroup], ha[kGroup], hb[kGroup], hc[kGroup];
         int brs[kGroup], qs[kGroup];
         for (int k = 0; k < kGroup; ++k) {
@@ -193,6 +193,14 @@ template <int BW, int BH, bool kFull, class T, class Res>
           al[k] = og < T(0.99) ? og : V{} + T(0.99);
           in[k] = (pw[k] <= T(0)) & (al[k] >= T(1.0f / 255.0f));
         }
+      };
+      // The next group's alphas are computed before this group is composited, so that the
+      // independent work sits beside the transmittance's chain in the instruction stream.
+      V al[kGroup], al_next[kGroup]{};
+      VI in[kGroup], in_next[kGroup]{};
+      alphas(0, al, in);
+      for (int i = 0; i < cnt; i += kGroup) {
+        if (i + kGroup < cnt) alphas(i + kGroup, al_next, in_next);
         for (int k = 0; k < kGroup; ++k) {
           // A pixel takes the Gaussian (con) when it is in its alpha range and the
           // transmittance stays above 1e-4; a finished pixel (Tp < 0) gives Tn <= 0, so it never
@@ -219,6 +227,7 @@ template <int BW, int BH, bool kFull, class T, class Res>
           live &= ~(uint64_t(1) << blk);
           break;
         }
+        for (int k = 0; k < kGroup; ++k) al[k] = al_next[k], in[k] = in_next[k];
       }
       vstore(Tt + p0, Tb), vstore(C0 + p0, c0), vstore(C1 + p0, c1), vstore(C2 + p0, c2);
       if constexpr (kFull) vstore(Dp + p0, dp), vstore(last + p0, lb);
@@ -237,6 +246,16 @@ template <int BW, int BH, bool kFull, class T, class Res>
 template <bool kFull, class Res>
 __attribute__((target("avx2"), flatten)) void composite_tile_avx2(Res& out, int tile, int tiles_x,
                                                                   int W, int H, const float* bg) {
+  composite_tile<4, 2, kFull, float>(out, tile, tiles_x, W, H, bg);
+}
+
+// The AVX-512 kernel: the AVX2 kernel's code (the same blocks of 4 x 2 pixels on 8 lanes)
+// compiled with AVX-512VL, which gives it 32 vector registers instead of 16 (the walk's state,
+// the group being composited and the next group's alphas fit without spilling) and comparisons
+// into mask registers. Without floating-point contraction, as the others: the same images.
+template <bool kFull, class Res>
+__attribute__((target("avx2,avx512f,avx512dq,avx512bw,avx512vl"), flatten)) void
+composite_tile_avx512(Res& out, int tile, int tiles_x, int W, int H, const float* bg) {
   composite_tile<4, 2, kFull, float>(out, tile, tiles_x, W, H, bg);
 }
 
@@ -280,7 +299,10 @@ void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* b
     if constexpr (std::is_same_v<T, float>) {
 #if defined(__x86_64__)
       if (isa == Isa::kAvx512) {
-        composite_tile_avx512(out, tile, tiles_x, W, H, bg, full);
+        if (full)
+          composite_tile_avx512<true>(out, tile, tiles_x, W, H, bg);
+        else
+          composite_tile_avx512<false>(out, tile, tiles_x, W, H, bg);
         continue;
       }
 #endif

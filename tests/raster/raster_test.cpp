@@ -434,6 +434,56 @@ TEST(Raster, BaselineAndAvx512KernelsAgree) {
   expect_kernel_agrees(RasterKernel::kAvx512, 23, 0.01, 0.05, 200, 150);
 }
 
+// The AVX-512 kernels are the AVX2 kernels' code compiled for AVX-512VL: every output of the
+// forward (image-only and full) and every gradient the same bits (on one thread: with more, the
+// threads' accumulators take the tiles in whatever order the schedule gives them).
+TEST(Raster, Avx512KernelsGiveTheAvx2Bits) {
+  if (!raster_avx512_available()) GTEST_SKIP() << "this CPU has no AVX-512";
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  for (const unsigned seed : {24u, 25u}) {
+    SCOPED_TRACE(seed);
+    SceneOptions o;
+    o.n = 400;
+    o.sh_degree = 3;
+    o.opacity_max = 0.999;
+    o.scale_min = 0.005, o.scale_max = seed == 24u ? 0.05 : 0.3;
+    const Gaussians g = random_scene(o, seed);
+    const Camera cam = test_camera(131, 97, 0.45, 0.55);
+    Image dc(cam.width, cam.height, 3), da(cam.width, cam.height, 1);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> U(-1.f, 1.f);
+    for (float& v : dc.data) v = U(rng);
+    for (float& v : da.data) v = U(rng);
+    RasterResult r[2], img[2];
+    RasterGrads gr[2];
+    for (int k = 0; k < 2; ++k) {
+      RasterSettings s;
+      s.background[1] = 0.4f;
+      s.kernel = k == 0 ? RasterKernel::kAvx2 : RasterKernel::kAvx512;
+      rasterize_forward(g, cam, s, r[k]);
+      rasterize_backward(g, cam, s, r[k], dc, da, gr[k]);
+      s.image_only = true;
+      rasterize_forward(g, cam, s, img[k]);
+    }
+    EXPECT_EQ(r[0].color.data, r[1].color.data);
+    EXPECT_EQ(r[0].alpha.data, r[1].alpha.data);
+    EXPECT_EQ(r[0].depth.data, r[1].depth.data);
+    EXPECT_EQ(r[0].final_T, r[1].final_T);
+    EXPECT_EQ(r[0].n_contrib, r[1].n_contrib);
+    EXPECT_EQ(r[0].entry_cells, r[1].entry_cells);
+    EXPECT_EQ(img[0].color.data, img[1].color.data);
+    EXPECT_EQ(img[0].alpha.data, img[1].alpha.data);
+    EXPECT_EQ(gr[0].means, gr[1].means);
+    EXPECT_EQ(gr[0].log_scales, gr[1].log_scales);
+    EXPECT_EQ(gr[0].quats, gr[1].quats);
+    EXPECT_EQ(gr[0].opacity_logits, gr[1].opacity_logits);
+    EXPECT_EQ(gr[0].sh, gr[1].sh);
+    EXPECT_EQ(gr[0].means2d, gr[1].means2d);
+  }
+  omp_set_num_threads(saved);
+}
+
 // ---- gradients -----------------------------------------------------------------------------
 
 struct Loss {
