@@ -83,11 +83,6 @@ struct VecTypes<float, 8> {
   typedef int32_t I __attribute__((vector_size(32)));
 };
 template <>
-struct VecTypes<float, 16> {
-  typedef float V __attribute__((vector_size(64)));
-  typedef int32_t I __attribute__((vector_size(64)));
-};
-template <>
 struct VecTypes<double, 4> {
   typedef double V __attribute__((vector_size(32)));
   typedef int64_t I __attribute__((vector_size(32)));
@@ -144,13 +139,6 @@ struct Simd<float, CW> {
       const I h = m + __builtin_shufflevector(m, m, 4, 5, 6, 7, 0, 1, 2, 3);
       const I q = h + __builtin_shufflevector(h, h, 2, 3, 0, 1, 2, 3, 0, 1);
       return -int(q[0] + q[1]);
-    }
-    if constexpr (CW == 16) {
-      const I h =
-          m + __builtin_shufflevector(m, m, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7);
-      const I q = h + __builtin_shufflevector(h, h, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3);
-      const I e = q + __builtin_shufflevector(q, q, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1);
-      return -int(e[0] + e[1]);
     }
 #endif
     int n = 0;
