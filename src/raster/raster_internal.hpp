@@ -111,10 +111,12 @@ struct Simd<float, CW> {
   // 15 dependent operations). exp above is the case K = 1.
   template <int K>
   [[gnu::always_inline]] static void exp_group(const V* x_in, V* out) {
-    V x[K], k[K], r[K], r2[K], r4[K], p[K];
+    V x[K], y[K], k[K], r[K], r2[K], r4[K], p[K];
     const V lo = V{} - 87.0f;
     for (int g = 0; g < K; ++g) x[g] = x_in[g] < lo ? lo : x_in[g];
-    for (int g = 0; g < K; ++g) k[g] = (x[g] * 1.4426950408889634f + 12582912.0f) - 12582912.0f;
+    // y holds round(x / ln 2) in its low mantissa bits (1.5 * 2^23 has a unit last place).
+    for (int g = 0; g < K; ++g) y[g] = x[g] * 1.4426950408889634f + 12582912.0f;
+    for (int g = 0; g < K; ++g) k[g] = y[g] - 12582912.0f;
     for (int g = 0; g < K; ++g)
       r[g] = (x[g] - k[g] * 0.693145751953125f) - k[g] * 1.428606765330187e-06f;
     for (int g = 0; g < K; ++g) r2[g] = r[g] * r[g];
@@ -124,10 +126,27 @@ struct Simd<float, CW> {
               p45 = r[g] * (1.0f / 120.0f) + 1.0f / 24.0f;
       p[g] = (p01 + r2[g] * p23) + r4[g] * (p45 + r2[g] * (1.0f / 720.0f));
     }
+    // 2^k as bits: (k + 127) << 23, from y's bits without a conversion (y's exponent and
+    // leading mantissa bits shift out: (bits(y) << 23) == (k << 23)).
     for (int g = 0; g < K; ++g) {
-      const I bits = (__builtin_convertvector(k[g], I) + 127) << 23;
+      const I bits = ((I)y[g] << 23) + (127 << 23);
       out[g] = p[g] * (V)bits;
     }
+  }
+  // minps: a < b ? a : b, lane by lane (one instruction; GCC does not turn the vector
+  // ternary into it). The same bits as the ternary, NaN lanes too.
+  [[gnu::always_inline]] static V min(const V& a, const V& b) {
+#if defined(__SSE2__)
+    if constexpr (CW == 4) return (V)_mm_min_ps((__m128)a, (__m128)b);
+#endif
+#if defined(__x86_64__)
+    if constexpr (CW == 8) {
+      V r;
+      asm("vminps %2, %1, %0" : "=v"(r) : "v"(a), "vm"(b));
+      return r;
+    }
+#endif
+    return a < b ? a : b;
   }
   // Number of set lanes of a comparison mask.
   [[gnu::always_inline]] static int count(const I& m) {
@@ -171,6 +190,7 @@ struct Simd<double, CW> {
     for (int l = 0; l < CW; ++l) x[l] = std::exp(x[l]);
     return x;
   }
+  static V min(const V& a, const V& b) { return a < b ? a : b; }
   template <int K>
   static void exp_group(const V* x, V* out) {
     for (int g = 0; g < K; ++g) out[g] = exp(x[g]);

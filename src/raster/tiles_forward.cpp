@@ -190,7 +190,7 @@ template <int BW, int BH, bool kFull, class T, class Res>
         SV::template exp_group<kGroup>(pw, ex);
         for (int k = 0; k < kGroup; ++k) {
           const V og = go[li[i + k]] * ex[k];
-          al[k] = og < T(0.99) ? og : V{} + T(0.99);
+          al[k] = SV::min(og, V{} + T(0.99));
           in[k] = (pw[k] <= T(0)) & (al[k] >= T(1.0f / 255.0f));
         }
       };
