@@ -133,6 +133,31 @@ struct Simd<float, CW> {
       out[g] = p[g] * (V)bits;
     }
   }
+  // 2^x for x <= 0 (the tile kernels' Gaussian falloff, whose exponent comes in base 2:
+  // block_power_group): k = round(x), 2^(x - k) by a degree-5 minimax polynomial on
+  // [-1/2, 1/2] (relative error 7.5e-8, 2.9e-7 evaluated in float) in Estrin's order, 2^k as
+  // bits. Below -126 it gives 2^-126.
+  template <int K>
+  [[gnu::always_inline]] static void exp2_group(const V* x_in, V* out) {
+    V x[K], y[K], r[K], r2[K], r4[K], p[K];
+    const V lo = V{} - 126.0f;
+    for (int g = 0; g < K; ++g) x[g] = x_in[g] < lo ? lo : x_in[g];
+    // y holds round(x) in its low mantissa bits (1.5 * 2^23 has a unit last place).
+    for (int g = 0; g < K; ++g) y[g] = x[g] + 12582912.0f;
+    for (int g = 0; g < K; ++g) r[g] = x[g] - (y[g] - 12582912.0f);
+    for (int g = 0; g < K; ++g) r2[g] = r[g] * r[g];
+    for (int g = 0; g < K; ++g) r4[g] = r2[g] * r2[g];
+    for (int g = 0; g < K; ++g) {
+      const V p01 = r[g] * 0.6931469440460205f + 1.0000001192092896f,
+              p23 = r[g] * 0.05550713092088699f + 0.24022120237350464f,
+              p45 = r[g] * 0.0013276472454890609f + 0.009675540961325169f;
+      p[g] = (p01 + r2[g] * p23) + r4[g] * p45;
+    }
+    for (int g = 0; g < K; ++g) {
+      const I bits = ((I)y[g] << 23) + (127 << 23);
+      out[g] = p[g] * (V)bits;
+    }
+  }
   // minps: a < b ? a : b, lane by lane (one instruction; GCC does not turn the vector
   // ternary into it). The same bits as the ternary, NaN lanes too.
   [[gnu::always_inline]] static V min(const V& a, const V& b) {
@@ -195,6 +220,11 @@ struct Simd<double, CW> {
   static void exp_group(const V* x, V* out) {
     for (int g = 0; g < K; ++g) out[g] = exp(x[g]);
   }
+  template <int K>
+  static void exp2_group(const V* x, V* out) {
+    for (int g = 0; g < K; ++g)
+      for (int l = 0; l < CW; ++l) out[g][l] = std::exp2(x[g][l]);
+  }
   static int count(const I& m) {
     int n = 0;
     for (int l = 0; l < CW; ++l) n -= int(m[l]);
@@ -229,21 +259,34 @@ constexpr int block_index(int c, int r) {
 constexpr int row_index(int c, int r) {
   return block_index<kTS, 1>(c, r);
 }
-// K Gaussians at (mx, my) (tile-local pixels) over blocks (br, q) of the BW x BH layout (all
-// given per Gaussian): each lane's offset from its pixel centre (dx, dy) and the exponent
-// -1/2 d^T Q d, with ha = a / 2, hc = c / 2 of the conic (a, b, c). The one expression both
-// tile kernels use, so that their decisions (alpha >= 1/255, the clamp) agree bit for bit. Each
+// A Gaussian's conic (a, b, c) as the tile kernels' exponent takes it: in base 2, negated, and
+// halved where the quadratic form has 1/2, so that -1/2 d^T Q d / ln 2 = ha d_x^2 + hc d_y^2 +
+// hb d_x d_y (Simd::exp2_group then gives exp(-1/2 d^T Q d)).
+template <class T>
+struct PowerCoeffs {
+  T ha, hb, hc;
+};
+template <class T>
+[[gnu::always_inline]] inline PowerCoeffs<T> power_coeffs(T a, T b, T c) {
+  constexpr T kLog2e = T(1.4426950408889634);
+  return {a * (-kLog2e / 2), b * -kLog2e, c * (-kLog2e / 2)};
+}
+
+// K Gaussians over blocks (br, q) of the BW x BH layout (all given per Gaussian): each lane's
+// offset from its pixel's centre (dx, dy) and the base-2 exponent pw (power_coeffs), from the
+// Gaussian's tile-local centre less half a pixel (mx, my). The one expression both tile
+// kernels use, so that their decisions (alpha >= 1/255, the clamp) agree bit for bit. Each
 // step is done for all K before the next, so that the K dependency chains overlap.
 template <int BW, int BH, int K, class V, class T>
 [[gnu::always_inline]] inline void block_power_group(const T* mx, const T* my, const T* ha,
-                                                     const T* b, const T* hc, const int* br,
+                                                     const T* hb, const T* hc, const int* br,
                                                      const int* q, const V& col_off,
                                                      const V& row_off, V* dx, V* dy, V* pw) {
-  for (int g = 0; g < K; ++g) dx[g] = (mx[g] - T(q[g] * BW) - T(0.5)) - col_off;
-  for (int g = 0; g < K; ++g) dy[g] = my[g] - ((T(br[g] * BH) + row_off) + T(0.5));
+  for (int g = 0; g < K; ++g) dx[g] = mx[g] - (col_off + T(q[g] * BW));
+  for (int g = 0; g < K; ++g) dy[g] = my[g] - (row_off + T(br[g] * BH));
   for (int g = 0; g < K; ++g) pw[g] = ha[g] * dx[g] * dx[g];
   for (int g = 0; g < K; ++g) pw[g] = pw[g] + hc[g] * dy[g] * dy[g];
-  for (int g = 0; g < K; ++g) pw[g] = -pw[g] - (b[g] * dy[g]) * dx[g];
+  for (int g = 0; g < K; ++g) pw[g] = pw[g] + (hb[g] * dy[g]) * dx[g];
 }
 
 // A visible Gaussian's tiles (RasterResultT::tile_rects) as two words, tx0 | tx1 << 16 and

@@ -148,8 +148,8 @@ template <int BW, int BH, class T, class Res, class Img>
       __builtin_prefetch(acc + size_t(kNG) * bid[k], 1);
       __builtin_prefetch(acc + size_t(kNG) * bid[k] + kNG - 1, 1);
       const T* rec = &fwd.packed[size_t(kRec) * bid[k]];
-      bmx[k] = rec[0] - T(ox);
-      bmy[k] = rec[1] - T(oy);
+      bmx[k] = (rec[0] - T(ox)) - T(0.5);
+      bmy[k] = (rec[1] - T(oy)) - T(0.5);
       ba[k] = rec[2], bb[k] = rec[3], bc[k] = rec[4], bo[k] = rec[5];
       br[k] = rec[6], bgc[k] = rec[7], bbl[k] = rec[8];
       const int x0 = std::max(int(rec[10]) - ox, 0) / BW;
@@ -170,7 +170,8 @@ template <int BW, int BH, class T, class Res, class Img>
       int blks[kBlocks];
       int nb = 0;
       for (; todo; todo &= todo - 1) blks[nb++] = __builtin_ctzll(todo);
-      const T ha = T(0.5) * a, hc = T(0.5) * c, my = bmy[k];
+      const PowerCoeffs<T> pc = power_coeffs(a, b, c);
+      const T my = bmy[k];
       // K blocks at a time: their powers and exponentials step by step for all K (the chains
       // side by side), then each block's pixels, then its terms added in block order (the
       // same sums, operation for operation, as one block at a time).
@@ -179,11 +180,11 @@ template <int BW, int BH, class T, class Res, class Img>
         T gmx[K], gmy[K], gha[K], gb[K], ghc[K];
         int brs[K], qs[K];
         for (int g = 0; g < K; ++g)
-          gmx[g] = mx, gmy[g] = my, gha[g] = ha, gb[g] = b, ghc[g] = hc, brs[g] = bl[g] / kBPR,
-          qs[g] = bl[g] % kBPR;
+          gmx[g] = mx, gmy[g] = my, gha[g] = pc.ha, gb[g] = pc.hb, ghc[g] = pc.hc,
+          brs[g] = bl[g] / kBPR, qs[g] = bl[g] % kBPR;
         // The forward's expression: the same skip decisions.
         block_power_group<BW, BH, K>(gmx, gmy, gha, gb, ghc, brs, qs, col_off, row_off, dx, dy, pw);
-        SV::template exp_group<K>(pw, Gv);
+        SV::template exp2_group<K>(pw, Gv);
         V t_r[K], t_g[K], t_bl[K], t_o[K], t_mx[K], t_my[K], t_a[K], t_c[K], t_b[K];
         for (int g = 0; g < K; ++g) {
           const int p0 = bl[g] * N;

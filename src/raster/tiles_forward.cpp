@@ -75,8 +75,9 @@ template <int BW, int BH, bool kFull, class T, class Res>
       Tt[p] = in ? T(1) : T(-1), C0[p] = C1[p] = C2[p] = Dp[p] = 0, last[p] = 0;
       live |= uint64_t(in) << (p / N);
     }
-  // The batch: per slot the Gaussian's centre (tile-local), half conic, opacity, colour, depth
-  // and its 1-based position in the tile's list; per block the slots that cover it.
+  // The batch: per slot the Gaussian's centre (tile-local, less half a pixel), its conic as
+  // power_coeffs, opacity, colour, depth and its 1-based position in the tile's list; per block
+  // the slots that cover it.
   constexpr int kSlots = kGather + 1;
   alignas(64) T gx[kSlots], gy[kSlots], gha[kSlots], gb[kSlots], ghc[kSlots], go[kSlots],
       gr[kSlots], gg[kSlots], gbl[kSlots], gz[kSlots];
@@ -100,6 +101,13 @@ template <int BW, int BH, bool kFull, class T, class Res>
       return sign_bits8(m) != 0;
     else
       return SV::count(m) != 0;
+  };
+  // Whether every lane of a block is finished (its sign bits, where the AVX2 kernel has them).
+  const auto all_negative = [](const V& v) {
+    if constexpr (kHaveSignBits8 && N == 8 && std::is_same_v<T, float>)
+      return sign_bits8((VI)v) == 0xffu;
+    else
+      return SV::all_negative(v);
   };
   const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
   for (uint32_t e = start; e < std::min(end, start + kPrefetch); ++e)
@@ -125,8 +133,9 @@ template <int BW, int BH, bool kFull, class T, class Res>
         if constexpr (kFull) cells_out[e] = 0;
         continue;
       }
-      gx[n] = rec[0] - T(ox), gy[n] = rec[1] - T(oy);
-      gha[n] = T(0.5) * rec[2], gb[n] = rec[3], ghc[n] = T(0.5) * rec[4], go[n] = rec[5];
+      gx[n] = (rec[0] - T(ox)) - T(0.5), gy[n] = (rec[1] - T(oy)) - T(0.5);
+      const PowerCoeffs<T> pc = power_coeffs(rec[2], rec[3], rec[4]);
+      gha[n] = pc.ha, gb[n] = pc.hb, ghc[n] = pc.hc, go[n] = rec[5];
       gr[n] = rec[6], gg[n] = rec[7], gbl[n] = rec[8], gz[n] = rec[9];
       gidx[n] = SI(e - start + 1);
       if constexpr (kFull) gcells[n] = 0;
@@ -187,11 +196,13 @@ template <int BW, int BH, bool kFull, class T, class Res>
         V dx[kGroup], dy[kGroup];
         block_power_group<BW, BH, kGroup>(mx, my, ha, hb, hc, brs, qs, col_off, row_off, dx, dy,
                                           pw);
-        SV::template exp_group<kGroup>(pw, ex);
+        SV::template exp2_group<kGroup>(pw, ex);
         for (int k = 0; k < kGroup; ++k) {
           const V og = go[li[i + k]] * ex[k];
           al[k] = SV::min(og, V{} + T(0.99));
           in[k] = (pw[k] <= T(0)) & (al[k] >= T(1.0f / 255.0f));
+          // Image only: alpha 0 outside the range (the pixel's state then stays as it is).
+          if constexpr (!kFull) al[k] = (V)((VI)al[k] & in[k]);
         }
       };
       // The next group's alphas are computed before this group is composited, so that the
@@ -207,23 +218,25 @@ template <int BW, int BH, bool kFull, class T, class Res>
           // does. One that would fall below finishes: Tp becomes -Tp, which for a pixel in
           // range is Tp with the sign bit set (a finished one's Tp already has it). The
           // transmittance's chain is then a product, a comparison and a blend.
+          // Image only, alpha is 0 outside the range: there Tn is Tp and w is 0, the same state
+          // without the range in the chain (only the last contributor and the cells need it).
           const int j = li[i + k];
           const V Tp = Tb;
           const V Tn = Tp * (T(1) - al[k]);
-          const VI con = in[k] & ~(Tn < T(1e-4));
+          const VI con = kFull ? in[k] & ~(Tn < T(1e-4)) : Tn >= T(1e-4);
           const V w = con ? al[k] * Tp : V{};
           c0 = c0 + w * gr[j];
           c1 = c1 + w * gg[j];
           c2 = c2 + w * gbl[j];
           if constexpr (kFull) dp = dp + w * gz[j];
-          Tb = con ? Tn : (V)((VI)Tp | (in[k] & sign));
+          Tb = con ? Tn : (V)((VI)Tp | (kFull ? in[k] & sign : sign));
           if constexpr (kFull) {
             lb = (con & SI(gidx[j])) | (~con & lb);
             gcells[j] |= any_lane(con) ? cells : 0u;
           }
         }
         // A finished pixel takes nothing more, so checking once a group changes nothing.
-        if (SV::all_negative(Tb)) {
+        if (all_negative(Tb)) {
           live &= ~(uint64_t(1) << blk);
           break;
         }
