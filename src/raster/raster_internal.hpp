@@ -272,18 +272,18 @@ template <class T>
   return {a * (-kLog2e / 2), b * -kLog2e, c * (-kLog2e / 2)};
 }
 
-// K Gaussians over blocks (br, q) of the BW x BH layout (all given per Gaussian): each lane's
-// offset from its pixel's centre (dx, dy) and the base-2 exponent pw (power_coeffs), from the
-// Gaussian's tile-local centre less half a pixel (mx, my). The one expression both tile
-// kernels use, so that their decisions (alpha >= 1/255, the clamp) agree bit for bit. Each
-// step is done for all K before the next, so that the K dependency chains overlap.
-template <int BW, int BH, int K, class V, class T>
+// K Gaussians over K blocks (all given per Gaussian; cols, rows: the tile-local column and
+// row of each lane of the block, block_lanes): each lane's offset from its pixel's centre
+// (dx, dy) and the base-2 exponent pw (power_coeffs), from the Gaussian's tile-local centre
+// less half a pixel (mx, my). The one expression both tile kernels use, so that their
+// decisions (alpha >= 1/255, the clamp) agree bit for bit. Each step is done for all K before
+// the next, so that the K dependency chains overlap.
+template <int K, class V, class T>
 [[gnu::always_inline]] inline void block_power_group(const T* mx, const T* my, const T* ha,
-                                                     const T* hb, const T* hc, const int* br,
-                                                     const int* q, const V& col_off,
-                                                     const V& row_off, V* dx, V* dy, V* pw) {
-  for (int g = 0; g < K; ++g) dx[g] = mx[g] - (col_off + T(q[g] * BW));
-  for (int g = 0; g < K; ++g) dy[g] = my[g] - (row_off + T(br[g] * BH));
+                                                     const T* hb, const T* hc, const V* cols,
+                                                     const V* rows, V* dx, V* dy, V* pw) {
+  for (int g = 0; g < K; ++g) dx[g] = mx[g] - cols[g];
+  for (int g = 0; g < K; ++g) dy[g] = my[g] - rows[g];
   for (int g = 0; g < K; ++g) pw[g] = ha[g] * dx[g] * dx[g];
   for (int g = 0; g < K; ++g) pw[g] = pw[g] + hc[g] * dy[g] * dy[g];
   for (int g = 0; g < K; ++g) pw[g] = pw[g] + (hb[g] * dy[g]) * dx[g];
@@ -350,6 +350,15 @@ template <int BW, int BH>
   }
 }
 
+// The tile-local column and row of each lane of block blk (br * kTS / BW + q), from each lane's
+// column and row within its block (block_columns, block_rows): exact small integers.
+template <int BW, int BH, class V>
+[[gnu::always_inline]] inline void block_lanes(int blk, const V& col_off, const V& row_off, V& cols,
+                                               V& rows) {
+  using T = std::remove_reference_t<decltype(col_off[0])>;
+  constexpr int kBPR = kTS / BW;
+  cols = col_off + T((blk % kBPR) * BW), rows = row_off + T((blk / kBPR) * BH);
+}
 // Each lane's column (l % BW) and row (l / BW) within its block.
 template <class V, int BW, int BH>
 [[gnu::always_inline]] inline V block_columns() {

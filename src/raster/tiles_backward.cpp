@@ -63,7 +63,7 @@ template <int BW, int BH, class T, class Res, class Img>
 [[gnu::always_inline]] inline void backward_tile(const Res& fwd, const Img& dLdc, const Img& dLda,
                                                  bool has_da, const T* bg, T* acc, int tile,
                                                  int tiles_x, int W, int H) {
-  constexpr int N = BW * BH, kBPR = kTS / BW, kBlocks = kTilePixels / N;
+  constexpr int N = BW * BH, kBlocks = kTilePixels / N;
   const uint32_t start = fwd.tile_ranges[2 * tile], end = fwd.tile_ranges[2 * tile + 1];
   if (start == end) return;
   const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
@@ -123,6 +123,9 @@ template <int BW, int BH, class T, class Res, class Img>
       jmax = std::max(jmax, int(last[p]));
     }
   const V col_off = block_columns<V, BW, BH>(), row_off = block_rows<V, BW, BH>();
+  alignas(64) V lane_cols[kBlocks], lane_rows[kBlocks];
+  for (int blk = 0; blk < kBlocks; ++blk)
+    block_lanes<BW, BH>(blk, col_off, row_off, lane_cols[blk], lane_rows[blk]);
   alignas(64) T bmx[kBatch], bmy[kBatch], ba[kBatch], bb[kBatch], bc[kBatch], bo[kBatch],
       br[kBatch], bgc[kBatch], bbl[kBatch];
   uint64_t bblocks[kBatch];
@@ -178,12 +181,12 @@ template <int BW, int BH, class T, class Res, class Img>
       const auto blocks = [&]<int K>(const int* bl) {
         V pw[K], dx[K], dy[K], Gv[K];
         T gmx[K], gmy[K], gha[K], gb[K], ghc[K];
-        int brs[K], qs[K];
+        V cols[K], rows[K];
         for (int g = 0; g < K; ++g)
           gmx[g] = mx, gmy[g] = my, gha[g] = pc.ha, gb[g] = pc.hb, ghc[g] = pc.hc,
-          brs[g] = bl[g] / kBPR, qs[g] = bl[g] % kBPR;
+          cols[g] = lane_cols[bl[g]], rows[g] = lane_rows[bl[g]];
         // The forward's expression: the same skip decisions.
-        block_power_group<BW, BH, K>(gmx, gmy, gha, gb, ghc, brs, qs, col_off, row_off, dx, dy, pw);
+        block_power_group<K>(gmx, gmy, gha, gb, ghc, cols, rows, dx, dy, pw);
         SV::template exp2_group<K>(pw, Gv);
         V t_r[K], t_g[K], t_bl[K], t_o[K], t_mx[K], t_my[K], t_a[K], t_c[K], t_b[K];
         for (int g = 0; g < K; ++g) {

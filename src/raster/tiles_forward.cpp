@@ -56,7 +56,7 @@ uint32_t sign_bits8(const VI&) {
 template <int BW, int BH, bool kFull, class T, class Res>
 [[gnu::always_inline]] inline void composite_tile(Res& out, int tile, int tiles_x, int W, int H,
                                                   const T* bg) {
-  constexpr int N = BW * BH, kBPR = kTS / BW, kBlocks = kTilePixels / N;
+  constexpr int N = BW * BH, kBlocks = kTilePixels / N;
   const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
   alignas(64) T Tt[kTilePixels], C0[kTilePixels], C1[kTilePixels], C2[kTilePixels], Dp[kTilePixels];
   using SV = Simd<T, N>;
@@ -66,7 +66,7 @@ template <int BW, int BH, bool kFull, class T, class Res>
   // A pixel is finished (transmittance would fall below 1e-4, or outside the image) when its
   // Tt is negative; |Tt| is its transmittance.
   alignas(64) SI last[kTilePixels];
-  // The blocks with a pixel still to be done, as bits (block br * kBPR + q).
+  // The blocks with a pixel still to be done, as bits (block br * kTS / BW + q).
   uint64_t live = 0;
   for (int r = 0; r < kTS; ++r)
     for (int c = 0; c < kTS; ++c) {
@@ -172,7 +172,8 @@ template <int BW, int BH, bool kFull, class T, class Res>
       const int blk = __builtin_ctzll(m);
       const int cnt = nlist[blk];
       if (!cnt) continue;
-      const int br = blk / kBPR, q = blk % kBPR;
+      V bcols, brows;
+      block_lanes<BW, BH>(blk, col_off, row_off, bcols, brows);
       const int p0 = blk * N;
       [[maybe_unused]] const uint32_t cells = block_cells<BW, BH>(blk);
       V Tb = vload<V>(Tt + p0), c0 = vload<V>(C0 + p0), c1 = vload<V>(C1 + p0),
@@ -187,15 +188,13 @@ template <int BW, int BH, bool kFull, class T, class Res>
       const auto alphas = [&](int i, V* al, VI* in) {
         V pw[kGroup], ex[kGroup];
         T mx[kGroup], my[kGroup], ha[kGroup], hb[kGroup], hc[kGroup];
-        int brs[kGroup], qs[kGroup];
         for (int k = 0; k < kGroup; ++k) {
           const int j = li[i + k];
           mx[k] = gx[j], my[k] = gy[j], ha[k] = gha[j], hb[k] = gb[j], hc[k] = ghc[j];
-          brs[k] = br, qs[k] = q;
         }
-        V dx[kGroup], dy[kGroup];
-        block_power_group<BW, BH, kGroup>(mx, my, ha, hb, hc, brs, qs, col_off, row_off, dx, dy,
-                                          pw);
+        V dx[kGroup], dy[kGroup], cols[kGroup], rows[kGroup];
+        for (int k = 0; k < kGroup; ++k) cols[k] = bcols, rows[k] = brows;
+        block_power_group<kGroup>(mx, my, ha, hb, hc, cols, rows, dx, dy, pw);
         SV::template exp2_group<kGroup>(pw, ex);
         for (int k = 0; k < kGroup; ++k) {
           const V og = go[li[i + k]] * ex[k];
