@@ -165,7 +165,7 @@ template <int BW, int BH, class T, class Res, class Img>
       const int j = bj[k];
       const T mx = bmx[k], a = ba[k], b = bb[k], c = bc[k], o = bo[k];
       const T cr = br[k], cg = bgc[k], cb = bbl[k];
-      V s_mx{}, s_my{}, s_a{}, s_b{}, s_c{}, s_o{}, s_r{}, s_g{}, s_bl{};
+      V s_u{}, s_v{}, s_a{}, s_b{}, s_c{}, s_o{}, s_r{}, s_g{}, s_bl{};
       VI any{};  // lanes where this Gaussian contributed to some pixel of the tile
       // The entry's blocks in the order of their bits.
       uint64_t todo = bblocks[k];
@@ -188,7 +188,7 @@ template <int BW, int BH, class T, class Res, class Img>
         // The forward's expression: the same skip decisions.
         block_power_group<K>(gmx, gmy, gha, gb, ghc, cols, rows, dx, dy, pw);
         SV::template exp2_group<K>(pw, Gv);
-        V t_r[K], t_g[K], t_bl[K], t_o[K], t_mx[K], t_my[K], t_a[K], t_c[K], t_b[K];
+        V t_r[K], t_g[K], t_bl[K], t_o[K], t_u[K], t_v[K], t_a[K], t_c[K], t_b[K];
         for (int g = 0; g < K; ++g) {
           const int p0 = bl[g] * N;
           const V og = o * Gv[g];
@@ -198,30 +198,37 @@ template <int BW, int BH, class T, class Res, class Img>
           const V om = T(1) - al;
           const V Tc = vload<V>(Tt + p0);
           const V Tj = Tc / om;
-          V r0 = vload<V>(R0 + p0), r1 = vload<V>(R1 + p0), r2 = vload<V>(R2 + p0);
+          const V r0 = vload<V>(R0 + p0), r1 = vload<V>(R1 + p0), r2 = vload<V>(R2 + p0);
           const V d0 = vload<V>(D0 + p0), d1 = vload<V>(D1 + p0), d2 = vload<V>(D2 + p0);
-          const V dLdal = Tj * ((cr - r0) * d0 + (cg - r1) * d1 + (cb - r2) * d2) +
-                          vload<V>(DA + p0) * vload<V>(Tf + p0) / om;
-          const V w = ok ? al * Tj : V{};
+          const V e0 = cr - r0, e1 = cg - r1, e2 = cb - r2;
+          const V dLdal =
+              Tj * (e0 * d0 + e1 * d1 + e2 * d2) + vload<V>(DA + p0) * vload<V>(Tf + p0) / om;
+          // Alpha where the pixel took the Gaussian, 0 elsewhere (there the colour behind stays
+          // and the weight is 0).
+          const V alo = ok ? al : V{};
+          const V w = alo * Tj;
           t_r[g] = w * d0;
           t_g[g] = w * d1;
           t_bl[g] = w * d2;
-          vstore(R0 + p0, ok ? cr * al + om * r0 : r0);
-          vstore(R1 + p0, ok ? cg * al + om * r1 : r1);
-          vstore(R2 + p0, ok ? cb * al + om * r2 : r2);
+          // The colour behind the Gaussian's predecessor: al c + (1 - al) r = r + al (c - r).
+          vstore(R0 + p0, r0 + alo * e0);
+          vstore(R1 + p0, r1 + alo * e1);
+          vstore(R2 + p0, r2 + alo * e2);
           vstore(Tt + p0, ok ? Tj : Tc);
           const V dLdog = (ok & (og <= T(0.99))) ? dLdal : V{};
           t_o[g] = Gv[g] * dLdog;
+          // pw = -1/2 d^T Q d: dpw/dmean = -(Q d), dpw/d(a, b, c) = -(dx^2 / 2, dx dy, dy^2 / 2).
+          // The lanes' dL/dpw dx and dL/dpw dy are summed here; the conic enters once at the end.
           const V dLdpw = og * dLdog;
-          t_mx[g] = dLdpw * (a * dx[g] + b * dy[g]);
-          t_my[g] = dLdpw * (c * dy[g] + b * dx[g]);
-          t_a[g] = T(0.5) * dx[g] * dx[g] * dLdpw;
-          t_c[g] = T(0.5) * dy[g] * dy[g] * dLdpw;
-          t_b[g] = dx[g] * dy[g] * dLdpw;
+          t_u[g] = dLdpw * dx[g];
+          t_v[g] = dLdpw * dy[g];
+          t_a[g] = t_u[g] * dx[g];
+          t_c[g] = t_v[g] * dy[g];
+          t_b[g] = t_u[g] * dy[g];
         }
         for (int g = 0; g < K; ++g) {
           s_r += t_r[g], s_g += t_g[g], s_bl += t_bl[g], s_o += t_o[g];
-          s_mx -= t_mx[g], s_my -= t_my[g], s_a -= t_a[g], s_c -= t_c[g], s_b -= t_b[g];
+          s_u += t_u[g], s_v += t_v[g], s_a += t_a[g], s_c += t_c[g], s_b += t_b[g];
         }
       };
       int i = 0;
@@ -241,7 +248,15 @@ template <int BW, int BH, class T, class Res, class Img>
       }
       // Nothing to add where no pixel took this Gaussian (its sums are exact zeros).
       if (SV::count(any) == 0) continue;
-      const V sums[kNG] = {s_mx, s_my, s_a, s_b, s_c, s_o, s_r, s_g, s_bl};
+      const V sums[kNG] = {-(a * s_u + b * s_v),
+                           -(c * s_v + b * s_u),
+                           T(-0.5) * s_a,
+                           -s_b,
+                           T(-0.5) * s_c,
+                           s_o,
+                           s_r,
+                           s_g,
+                           s_bl};
       add_lane_sums<N, T>(sums, acc + size_t(kNG) * bid[k]);
     }
   }
