@@ -16,6 +16,7 @@
 #include <cstring>
 #include <limits>
 #include <string>
+#include <type_traits>
 
 #include "core/error.hpp"
 #include "raster/projection.hpp"
@@ -305,7 +306,7 @@ inline TileRect unpack_tile_rect(uint32_t xr, uint32_t yr) {
 // for tiles of at most 64 blocks: the tile kernels skip a Gaussian whose box holds none of the
 // blocks still to be done.
 template <int BW, int BH>
-[[gnu::always_inline]] inline uint64_t box_blocks(int q0, int q1, int br0, int br1) {
+constexpr uint64_t box_blocks(int q0, int q1, int br0, int br1) {
   constexpr int kBPR = kTS / BW;
   static_assert(kTilePixels / (BW * BH) <= 64, "one bit a block");
   constexpr uint64_t kRowFirst = [] {
@@ -317,6 +318,41 @@ template <int BW, int BH>
                            ~((uint64_t(1) << (br0 * kBPR)) - 1);
   const uint64_t cols_in = (uint64_t(2) << q1) - (uint64_t(1) << q0);
   return rows_in * cols_in;  // each row's first-column bit spread over the columns
+}
+
+// The blocks of a tile (origin ox, oy) that a render record's pixel box (rec[10..13]: x0, x1,
+// y0, y1, whole pixels within the image) covers, as box_blocks gives them: the box made
+// tile-local and clamped to the tile four coordinates at a time, its block rows and columns
+// looked up. Only for entries of that tile (their box meets it).
+template <int BW, int BH, class T>
+[[gnu::always_inline]] inline uint64_t entry_blocks(const T* rec, int ox, int oy) {
+  constexpr int kBPR = kTS / BW, kRows = kTS / BH;
+  static_assert((BW & (BW - 1)) == 0 && (BH & (BH - 1)) == 0, "powers of two");
+  struct Tables {
+    uint64_t cols[kBPR * kBPR], rows[kRows * kRows];
+  };
+  static constexpr Tables kTab = [] {
+    Tables t{};
+    for (int a = 0; a < kBPR; ++a)
+      for (int b = a; b < kBPR; ++b) t.cols[a * kBPR + b] = box_blocks<BW, BH>(a, b, 0, kRows - 1);
+    for (int a = 0; a < kRows; ++a)
+      for (int b = a; b < kRows; ++b) t.rows[a * kRows + b] = box_blocks<BW, BH>(0, kBPR - 1, a, b);
+    return t;
+  }();
+  typedef int32_t I4 __attribute__((vector_size(16)));
+  I4 b;
+  if constexpr (std::is_same_v<T, float>) {
+    typedef float F4 __attribute__((vector_size(16)));
+    b = __builtin_convertvector(vload<F4>(rec + 10), I4);
+  } else {
+    b = I4{int(rec[10]), int(rec[11]), int(rec[12]), int(rec[13])};
+  }
+  b -= I4{ox, ox, oy, oy};
+  b = b < 0 ? I4{} : b;
+  b = b > kTS - 1 ? I4{} + (kTS - 1) : b;
+  const uint32_t q0 = uint32_t(b[0]) / BW, q1 = uint32_t(b[1]) / BW;
+  const uint32_t r0 = uint32_t(b[2]) / BH, r1 = uint32_t(b[3]) / BH;
+  return kTab.cols[q0 * kBPR + q1] & kTab.rows[r0 * kRows + r1];
 }
 
 // The forward's record for the backward of where each (tile, Gaussian) entry contributed

@@ -155,11 +155,7 @@ template <int BW, int BH, class T, class Res, class Img>
       bmy[k] = (rec[1] - T(oy)) - T(0.5);
       ba[k] = rec[2], bb[k] = rec[3], bc[k] = rec[4], bo[k] = rec[5];
       br[k] = rec[6], bgc[k] = rec[7], bbl[k] = rec[8];
-      const int x0 = std::max(int(rec[10]) - ox, 0) / BW;
-      const int x1 = std::min(int(rec[11]) - ox, kTS - 1) / BW;
-      const int y0 = std::max(int(rec[12]) - oy, 0) / BH;
-      const int y1 = std::min(int(rec[13]) - oy, kTS - 1) / BH;
-      bblocks[k] = cells_blocks<BW, BH>(cells[j]) & box_blocks<BW, BH>(x0, x1, y0, y1);
+      bblocks[k] = cells_blocks<BW, BH>(cells[j]) & entry_blocks<BW, BH>(rec, ox, oy);
     }
     for (int k = nk - 1; k >= 0; --k) {
       const int j = bj[k];

@@ -124,11 +124,7 @@ template <int BW, int BH, bool kFull, class T, class Res>
       if (e + kPrefetch < end)
         __builtin_prefetch(&out.packed[size_t(kRec) * out.point_list[e + kPrefetch]]);
       const T* rec = &out.packed[size_t(kRec) * out.point_list[e]];
-      const int q0 = std::max(int(rec[10]) - ox, 0) / BW;
-      const int q1 = std::min(int(rec[11]) - ox, kTS - 1) / BW;
-      const int br0 = std::max(int(rec[12]) - oy, 0) / BH;
-      const int br1 = std::min(int(rec[13]) - oy, kTS - 1) / BH;
-      uint64_t todo = live & box_blocks<BW, BH>(q0, q1, br0, br1);
+      uint64_t todo = live & entry_blocks<BW, BH>(rec, ox, oy);
       if (!todo) {
         if constexpr (kFull) cells_out[e] = 0;
         continue;
