@@ -42,6 +42,22 @@ uint32_t sign_bits8(const VI&) {
 }
 #endif
 
+// For each byte of bits, the positions of its set bits as bytes, in order (the rest zero).
+struct SlotBytes {
+  uint64_t b[256];
+};
+constexpr SlotBytes kSlotBytes = [] {
+  SlotBytes t{};
+  for (int m = 0; m < 256; ++m) {
+    int k = 0;
+    for (int bit = 0; bit < 8; ++bit)
+      if (m >> bit & 1) t.b[m] |= uint64_t(bit) << (8 * k++);
+  }
+  return t;
+}();
+static_assert((kGather + 7) / 8 * 8 <= 256 && kGroup <= 8,
+              "slot numbers (whole bytes of eight) fit a byte");
+
 // One tile of the forward pass. One SIMD vector is a block of BW x BH pixels (BW columns of BH
 // rows); the tile's pixel state is kept block by block (block_index). kFull: also the expected
 // depth and the backward's state (last contributor, final transmittance). Every block shape
@@ -84,7 +100,8 @@ template <int BW, int BH, bool kFull, class T, class Res>
   alignas(64) SI gidx[kSlots];
   alignas(64) uint32_t gcells[kFull ? kSlots : 1];  // kFull: the cells each slot contributed to
   uint32_t* const cells_out = kFull ? out.entry_cells.data() : nullptr;
-  alignas(64) uint8_t lists[kBlocks][kGather + kGroup];
+  // (Room for a whole group of padding, and for the eight bytes kByMasks stores at a time.)
+  alignas(64) uint8_t lists[kBlocks][kGather + 8];
   gx[kGather] = gy[kGather] = gha[kGather] = gb[kGather] = ghc[kGather] = go[kGather] = 0;
   gr[kGather] = gg[kGather] = gbl[kGather] = gz[kGather] = 0;
   gidx[kGather] = 0;
@@ -153,13 +170,14 @@ template <int BW, int BH, bool kFull, class T, class Res>
         const int blk = __builtin_ctzll(m);
         uint8_t* li = lists[blk];
         int cnt = 0;
-        for (int s0 = 0; s0 < n; s0 += 64) {
-          uint64_t word = 0;
-          for (int k = 0; k < 8 && s0 + 8 * k < n; ++k) {
-            const VI v = vload<VI>(slot_blocks + s0 + 8 * k) << (31 - blk);
-            word |= uint64_t(sign_bits8(v)) << (8 * k);
-          }
-          for (; word; word &= word - 1) li[cnt++] = uint8_t(s0 + __builtin_ctzll(word));
+        // Eight slots a step: their bits for this block, and the set ones' slot numbers as
+        // eight bytes from a table (kSlotBytes), stored whole and advanced by their count.
+        for (int s0 = 0; s0 < n; s0 += 8) {
+          const VI v = vload<VI>(slot_blocks + s0) << (31 - blk);
+          const uint32_t bits = sign_bits8(v);
+          const uint64_t idx = kSlotBytes.b[bits] + 0x0101010101010101ull * uint64_t(s0);
+          std::memcpy(li + cnt, &idx, sizeof idx);
+          cnt += __builtin_popcount(bits);
         }
         nlist[blk] = cnt;
       }
