@@ -1,0 +1,109 @@
+// The tile kernels' shared numeric pieces (src/raster/raster_internal.hpp): the base-2
+// exponential, the exponent from a conic, the minimum, and an entry's blocks.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+
+#include "raster/raster_internal.hpp"
+
+namespace ks::raster {
+namespace {
+
+using SV = Simd<float, 4>;
+using V = SV::V;
+
+TEST(RasterInternal, Exp2IsWithinItsErrorOverTheKernelsRange) {
+  double worst = 0;
+  // Down to -100 (alpha >= 1/255 needs about -8; near -126 the results are subnormal floats).
+  for (int i = 0; i <= 100 * 4096; i += 4) {
+    V x, out;
+    for (int l = 0; l < 4; ++l) x[l] = -float(i + l) / 4096.f;
+    SV::exp2_group<1>(&x, &out);
+    for (int l = 0; l < 4; ++l) {
+      const double ref = std::exp2(double(x[l]));
+      worst = std::max(worst, std::abs(double(out[l]) - ref) / ref);
+    }
+  }
+  EXPECT_LT(worst, 3.5e-7);
+  // Below -126 (far outside a Gaussian's box, where alpha < 1/255 anyway): 2^-126, never an
+  // infinity or a NaN.
+  V x = {-126.5f, -1000.f, -1e30f, -std::numeric_limits<float>::infinity()}, out;
+  SV::exp2_group<1>(&x, &out);
+  for (int l = 0; l < 4; ++l) EXPECT_NEAR(out[l], std::exp2(-126.f), 1e-6 * std::exp2(-126.f));
+  // The double path is std::exp2.
+  using SD = Simd<double, 4>;
+  SD::V xd = {-0.3, -1.7, -20.25, 0}, od;
+  SD::exp2_group<1>(&xd, &od);
+  for (int l = 0; l < 4; ++l) EXPECT_EQ(od[l], std::exp2(xd[l]));
+}
+
+TEST(RasterInternal, PowerFromTheConicIsTheFalloffInBaseTwo) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  for (int trial = 0; trial < 200; ++trial) {
+    // A positive definite conic and a block of lanes around its centre.
+    const float a = 0.05f + std::abs(u(rng)), c = 0.05f + std::abs(u(rng));
+    const float b = 0.9f * u(rng) * std::sqrt(a * c);
+    const PowerCoeffs<float> pc = power_coeffs(a, b, c);
+    const float mx = 6.f * u(rng), my = 6.f * u(rng);
+    V cols = {0, 1, 2, 3}, rows = {1, 1, 2, 2}, dx, dy, pw, g;
+    block_power_group<1>(&mx, &my, &pc.ha, &pc.hb, &pc.hc, &cols, &rows, &dx, &dy, &pw);
+    SV::exp2_group<1>(&pw, &g);
+    for (int l = 0; l < 4; ++l) {
+      const double ex = double(mx) - cols[l], ey = double(my) - rows[l];
+      EXPECT_FLOAT_EQ(dx[l], float(ex));
+      EXPECT_FLOAT_EQ(dy[l], float(ey));
+      const double power = -0.5 * (a * ex * ex + c * ey * ey) - b * ex * ey;
+      EXPECT_LE(pw[l], 0.f);
+      EXPECT_NEAR(pw[l] * std::log(2.0), power, 1e-5 * (1 + std::abs(power)));
+      EXPECT_NEAR(g[l], std::exp2(double(pw[l])), 3.5e-7 * std::exp2(double(pw[l])));
+      // Where alpha can reach 1/255 (power > -ln 255), within the float exponent's rounding.
+      if (power > -6) {
+        EXPECT_NEAR(g[l], std::exp(power), 4e-6 * std::exp(power));
+      }
+    }
+  }
+}
+
+TEST(RasterInternal, MinIsTheTernaryBitForBit) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const V a = {0.5f, 2.f, nan, -0.f}, b = {0.99f, 0.99f, 0.99f, 0.f};
+  const V m = SV::min(a, b);
+  const V t = a < b ? a : b;
+  for (int l = 0; l < 4; ++l) EXPECT_EQ(std::memcmp(&m[l], &t[l], 4), 0) << l;
+}
+
+template <int BW, int BH>
+void expect_entry_blocks_match_the_box() {
+  // Every pixel box that meets tile (1, 2) of a 64 x 64 image, clipped to the image as the
+  // records are, against box_blocks of its tile-local clamped block range.
+  const int ox = 16, oy = 32;
+  for (int x0 = 0; x0 < 40; x0 += 3)
+    for (int x1 = std::max(x0, ox); x1 < 64; x1 += 5)
+      for (int y0 = 0; y0 < 56; y0 += 5)
+        for (int y1 = std::max(y0, oy); y1 < 64; y1 += 3) {
+          if (x0 > ox + kTS - 1 || y0 > oy + kTS - 1) continue;
+          float rec[kRec] = {};
+          rec[10] = float(x0), rec[11] = float(x1), rec[12] = float(y0), rec[13] = float(y1);
+          const int q0 = std::max(x0 - ox, 0) / BW, q1 = std::min(x1 - ox, kTS - 1) / BW;
+          const int r0 = std::max(y0 - oy, 0) / BH, r1 = std::min(y1 - oy, kTS - 1) / BH;
+          EXPECT_EQ((entry_blocks<BW, BH>(rec, ox, oy)), (box_blocks<BW, BH>(q0, q1, r0, r1)))
+              << x0 << " " << x1 << " " << y0 << " " << y1;
+          double drec[kRec] = {};
+          for (int k = 10; k < 14; ++k) drec[k] = rec[k];
+          EXPECT_EQ((entry_blocks<BW, BH>(drec, ox, oy)), (box_blocks<BW, BH>(q0, q1, r0, r1)));
+        }
+}
+
+TEST(RasterInternal, EntryBlocksAreTheBoxsBlocks) {
+  expect_entry_blocks_match_the_box<4, 2>();
+  expect_entry_blocks_match_the_box<4, 1>();
+  expect_entry_blocks_match_the_box<8, 1>();
+}
+
+}  // namespace
+}  // namespace ks::raster
