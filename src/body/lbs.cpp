@@ -60,11 +60,24 @@ template <int CW>
   V M[12], qc[4];
   for (int r = 0; r < 3; ++r) L::transpose4(rows[r], &M[4 * r]);
   L::transpose4(qrows, qc);
-  V x[3] = {};
-  for (int l = 0; l < CW; ++l) {
-    const size_t i = at(l);
-    for (int k = 0; k < 3; ++k)
-      x[k][l] = job.c->means[3 * i + k] + (job.pose_offsets ? job.pose_offsets[3 * i + k] : 0.f);
+  // The means (plus pose offsets) as rows of four floats, then lanes (the fourth float is the
+  // next Gaussian's, unused, unless the block holds the last Gaussian).
+  V x[4];
+  {
+    const bool overread = i0 + size_t(CW) < job.c->size();
+    V4 rm[CW];
+    for (int l = 0; l < CW; ++l) {
+      const size_t i = at(l);
+      const float* p = &job.c->means[3 * i];
+      const float* d = job.pose_offsets ? &job.pose_offsets[3 * i] : nullptr;
+      if (overread) {
+        rm[l] = L::load4(p);
+        if (d) rm[l] += L::load4(d);
+      } else {
+        rm[l] = d ? V4{p[0] + d[0], p[1] + d[1], p[2] + d[2], 0.f} : V4{p[0], p[1], p[2], 0.f};
+      }
+    }
+    L::transpose4(rm, x);
   }
   V m[3];
   for (int r = 0; r < 3; ++r)

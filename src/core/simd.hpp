@@ -51,6 +51,13 @@ struct Lanes {
   // rows[l][k], and four lanes vectors into CW 4-float rows. The same values per-lane loops of
   // insertions and extractions give, in a fraction of the instructions.
   typedef float V4 __attribute__((vector_size(16)));
+  // CW consecutive floats as lanes (one vector load, not a vector built lane by lane through
+  // memory, whose load waits for every lane's store).
+  [[gnu::always_inline]] static V load(const float* p) {
+    V v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+  }
   [[gnu::always_inline]] static V4 load4(const float* p) {
     V4 v;
     std::memcpy(&v, p, sizeof v);

@@ -167,7 +167,11 @@ template <int CW>
         rs[l] = L::load4(&g.log_scales[3 * i]);
       else
         rs[l] = V4{g.log_scales[3 * i], g.log_scales[3 * i + 1], g.log_scales[3 * i + 2], 0.f};
-      lo[l] = in.opacity[k];
+    }
+    if (n == CW) {
+      lo = L::load(&in.opacity[i0 - in.first]);
+    } else {
+      for (int l = 0; l < CW; ++l) lo[l] = in.opacity[i0 + size_t(l < n ? l : 0) - in.first];
     }
     params_to_lanes<L>(rm, rs, rq, mx, my, mz, l0, l1, l2, qw, qx, qy, qz);
   }
