@@ -93,6 +93,26 @@ struct VecTypes<double, 8> {
   typedef double V __attribute__((vector_size(64)));
   typedef int64_t I __attribute__((vector_size(64)));
 };
+// The sign bits of 8 int32 lanes (vmovmskps, as assembly: a generic template cannot call the
+// AVX intrinsic, which needs the target in the caller itself; only code inlined into the AVX2
+// and AVX-512 kernels instantiates it).
+#if defined(__x86_64__)
+constexpr bool kHaveSignBits8 = true;
+template <class VI>
+[[gnu::always_inline]] inline uint32_t sign_bits8(const VI& v) {
+  static_assert(sizeof(VI) == 32, "8 lanes of 32 bits");
+  uint32_t r;
+  asm("vmovmskps %1, %0" : "=r"(r) : "x"(v));
+  return r;
+}
+#else
+constexpr bool kHaveSignBits8 = false;
+template <class VI>
+uint32_t sign_bits8(const VI&) {
+  return 0;
+}
+#endif
+
 template <class T, int CW>
 struct Simd;
 template <int CW>
@@ -174,34 +194,22 @@ struct Simd<float, CW> {
 #endif
     return a < b ? a : b;
   }
-  // Number of set lanes of a comparison mask.
-  [[gnu::always_inline]] static int count(const I& m) {
+  // Whether any lane of a comparison mask is set.
+  [[gnu::always_inline]] static bool any(const I& m) {
 #if defined(__SSE2__)
-    if constexpr (CW == 4) return __builtin_popcount(_mm_movemask_ps(_mm_castsi128_ps((__m128i)m)));
-    if constexpr (CW == 8) {
-      // Halving sums of the 0 / -1 lanes, generic vector code that becomes AVX2 where the
-      // AVX2 kernel inlines it (an intrinsic would need the target here too).
-      const I h = m + __builtin_shufflevector(m, m, 4, 5, 6, 7, 0, 1, 2, 3);
-      const I q = h + __builtin_shufflevector(h, h, 2, 3, 0, 1, 2, 3, 0, 1);
-      return -int(q[0] + q[1]);
-    }
+    if constexpr (CW == 4) return _mm_movemask_ps(_mm_castsi128_ps((__m128i)m)) != 0;
 #endif
-    int n = 0;
-    for (int l = 0; l < CW; ++l) n -= int(m[l]);
-    return n;
+    if constexpr (CW == 8 && kHaveSignBits8) return sign_bits8(m) != 0;
+    for (int l = 0; l < CW; ++l)
+      if (m[l]) return true;
+    return false;
   }
   // Whether every lane's sign bit is set (every pixel of a block finished).
   [[gnu::always_inline]] static bool all_negative(const V& v) {
 #if defined(__SSE2__)
     if constexpr (CW == 4) return _mm_movemask_ps((__m128)v) == 0xf;
-    if constexpr (CW == 8) {
-      // The lanes' bits and-ed by halves (generic vector code, as count above).
-      const I m = (I)v;
-      const I h = m & __builtin_shufflevector(m, m, 4, 5, 6, 7, 0, 1, 2, 3);
-      const I q = h & __builtin_shufflevector(h, h, 2, 3, 0, 1, 2, 3, 0, 1);
-      return (q[0] & q[1]) < 0;
-    }
 #endif
+    if constexpr (CW == 8 && kHaveSignBits8) return sign_bits8((I)v) == 0xffu;
     for (int l = 0; l < CW; ++l)
       if (!(v[l] < 0)) return false;
     return true;
@@ -226,10 +234,10 @@ struct Simd<double, CW> {
     for (int g = 0; g < K; ++g)
       for (int l = 0; l < CW; ++l) out[g][l] = std::exp2(x[g][l]);
   }
-  static int count(const I& m) {
-    int n = 0;
-    for (int l = 0; l < CW; ++l) n -= int(m[l]);
-    return n;
+  static bool any(const I& m) {
+    for (int l = 0; l < CW; ++l)
+      if (m[l]) return true;
+    return false;
   }
   static bool all_negative(const V& v) {
     for (int l = 0; l < CW; ++l)

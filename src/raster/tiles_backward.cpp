@@ -243,7 +243,7 @@ template <int BW, int BH, class T, class Res, class Img>
           break;
       }
       // Nothing to add where no pixel took this Gaussian (its sums are exact zeros).
-      if (SV::count(any) == 0) continue;
+      if (!SV::any(any)) continue;
       const V sums[kNG] = {-(a * s_u + b * s_v),
                            -(c * s_v + b * s_u),
                            T(-0.5) * s_a,

@@ -23,25 +23,6 @@ constexpr int kGather = 252;
 // Gaussians a block takes at a time (its list padded with the empty slot kGather).
 constexpr int kGroup = 4;
 
-// The sign bits of 8 int32 lanes (vmovmskps; only the AVX2 kernel instantiates it: a generic
-// template cannot call the AVX intrinsic, which needs the target in the caller itself).
-#if defined(__x86_64__)
-constexpr bool kHaveSignBits8 = true;
-template <class VI>
-[[gnu::always_inline]] inline uint32_t sign_bits8(const VI& v) {
-  static_assert(sizeof(VI) == 32, "8 lanes of 32 bits");
-  uint32_t r;
-  asm("vmovmskps %1, %0" : "=r"(r) : "x"(v));
-  return r;
-}
-#else
-constexpr bool kHaveSignBits8 = false;
-template <class VI>
-uint32_t sign_bits8(const VI&) {
-  return 0;
-}
-#endif
-
 // For each byte of bits, the positions of its set bits as bytes, in order (the rest zero).
 struct SlotBytes {
   uint64_t b[256];
@@ -112,20 +93,6 @@ template <int BW, int BH, bool kFull, class T, class Res>
   alignas(64) uint32_t slot_blocks[kByMasks ? kGather + 8 : 1];
   const V col_off = block_columns<V, BW, BH>(), row_off = block_rows<V, BW, BH>();
   const VI sign = VI{} + std::numeric_limits<SI>::min();  // T's sign bit in every lane
-  // Whether any lane of a mask is set (the sign bits where the AVX2 kernel has them).
-  [[maybe_unused]] const auto any_lane = [](const VI& m) {
-    if constexpr (kHaveSignBits8 && N == 8 && std::is_same_v<T, float>)
-      return sign_bits8(m) != 0;
-    else
-      return SV::count(m) != 0;
-  };
-  // Whether every lane of a block is finished (its sign bits, where the AVX2 kernel has them).
-  const auto all_negative = [](const V& v) {
-    if constexpr (kHaveSignBits8 && N == 8 && std::is_same_v<T, float>)
-      return sign_bits8((VI)v) == 0xffu;
-    else
-      return SV::all_negative(v);
-  };
   const uint32_t start = out.tile_ranges[2 * tile], end = out.tile_ranges[2 * tile + 1];
   for (uint32_t e = start; e < std::min(end, start + kPrefetch); ++e)
     __builtin_prefetch(&out.packed[size_t(kRec) * out.point_list[e]]);
@@ -245,11 +212,11 @@ template <int BW, int BH, bool kFull, class T, class Res>
           Tb = con ? Tn : (V)((VI)Tp | (kFull ? in[k] & sign : sign));
           if constexpr (kFull) {
             lb = (con & SI(gidx[j])) | (~con & lb);
-            gcells[j] |= any_lane(con) ? cells : 0u;
+            gcells[j] |= SV::any(con) ? cells : 0u;
           }
         }
         // A finished pixel takes nothing more, so checking once a group changes nothing.
-        if (all_negative(Tb)) {
+        if (SV::all_negative(Tb)) {
           live &= ~(uint64_t(1) << blk);
           break;
         }
