@@ -281,6 +281,13 @@ template <class T>
   return {a * (-kLog2e / 2), b * -kLog2e, c * (-kLog2e / 2)};
 }
 
+// A Gaussian's centre coordinate (pixels) made tile-local (tile origin o) less half a pixel, as
+// block_power_group takes it: both tile kernels take it from here, so the same bits.
+template <class T>
+[[gnu::always_inline]] inline T tile_centre(T x, int o) {
+  return (x - T(o)) - T(0.5);
+}
+
 // K Gaussians over K blocks (all given per Gaussian; cols, rows: the tile-local column and
 // row of each lane of the block, block_lanes): each lane's offset from its pixel's centre
 // (dx, dy) and the base-2 exponent pw (power_coeffs), from the Gaussian's tile-local centre

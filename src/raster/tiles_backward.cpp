@@ -151,8 +151,8 @@ template <int BW, int BH, class T, class Res, class Img>
       __builtin_prefetch(acc + size_t(kNG) * bid[k], 1);
       __builtin_prefetch(acc + size_t(kNG) * bid[k] + kNG - 1, 1);
       const T* rec = &fwd.packed[size_t(kRec) * bid[k]];
-      bmx[k] = (rec[0] - T(ox)) - T(0.5);
-      bmy[k] = (rec[1] - T(oy)) - T(0.5);
+      bmx[k] = tile_centre(rec[0], ox);
+      bmy[k] = tile_centre(rec[1], oy);
       ba[k] = rec[2], bb[k] = rec[3], bc[k] = rec[4], bo[k] = rec[5];
       br[k] = rec[6], bgc[k] = rec[7], bbl[k] = rec[8];
       bblocks[k] = cells_blocks<BW, BH>(cells[j]) & entry_blocks<BW, BH>(rec, ox, oy);

@@ -113,7 +113,7 @@ template <int BW, int BH, bool kFull, class T, class Res>
         if constexpr (kFull) cells_out[e] = 0;
         continue;
       }
-      gx[n] = (rec[0] - T(ox)) - T(0.5), gy[n] = (rec[1] - T(oy)) - T(0.5);
+      gx[n] = tile_centre(rec[0], ox), gy[n] = tile_centre(rec[1], oy);
       const PowerCoeffs<T> pc = power_coeffs(rec[2], rec[3], rec[4]);
       gha[n] = pc.ha, gb[n] = pc.hb, ghc[n] = pc.hc, go[n] = rec[5];
       gr[n] = rec[6], gg[n] = rec[7], gbl[n] = rec[8], gz[n] = rec[9];
