@@ -125,7 +125,6 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
   // the tile rectangles the projection wrote (gathered once into depth order), then a prefix sum
   // over (tile, thread) gives every thread its write offsets, and each scatters its slice. Slices
   // are in depth order, so every tile list comes out depth-sorted (stable).
-  uint32_t team = 1;
   const int maxthreads = omp_get_max_threads();
   auto& counts = out.scratch_counts;
   counts.resize(size_t(maxthreads) * ntiles);
@@ -175,26 +174,26 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
         }
         out.tile_ranges[2 * t + 1] = off;
       }
-      out.point_list.resize(off + uint32_t(nt));  // one spare slot a thread (below)
-      team = uint32_t(nt);
+      out.point_list.resize(off);
     }
     uint32_t* list = out.point_list.data();
-    const uint32_t spare = uint32_t(out.point_list.size()) - uint32_t(nt - tid);
     for (size_t k = b; k < e; ++k) {
       const uint32_t id = ids[k];
       const auto [tx0, tx1, ty0, ty1] =
           unpack_tile_rect(sorted_rects[2 * k], sorted_rects[2 * k + 1]);
       const int nx = tx1 - tx0, ny = ty1 - ty0, t = ty0 * tiles_x + tx0;
       if ((nx | ny) <= 1) {
-        // The three optional tiles write to this thread's spare slot when absent; the
-        // counters read before and written after, last-first, as in the count above.
+        // Four writes, no branch: an absent tile's counter is one of the present ones' (t + nx
+        // is t when nx is 0, and so on), so its write repeats one of theirs, the same id into
+        // the same slot. The counters read before and written after, last-first, as in the
+        // count above.
         const int dy = ny * tiles_x;
         const uint32_t c0 = cnt[t], c1 = cnt[t + nx], c2 = cnt[t + dy], c3 = cnt[t + nx + dy];
         const int nxy = nx & ny;
         list[c0] = id;
-        list[nx ? c1 : spare] = id;
-        list[ny ? c2 : spare] = id;
-        list[nxy ? c3 : spare] = id;
+        list[c1] = id;
+        list[c2] = id;
+        list[c3] = id;
         cnt[t + nx + dy] = c3 + uint32_t(nxy);
         cnt[t + dy] = c2 + uint32_t(ny);
         cnt[t + nx] = c1 + uint32_t(nx);
@@ -205,7 +204,6 @@ void sort_and_bin(RasterResultT<T>& out, int tiles_x, int tiles_y) {
       }
     }
   }
-  out.point_list.resize(out.point_list.size() - team);
   out.packed.swap(out.records);
   timer.mark("bin");
 }
