@@ -23,19 +23,6 @@ constexpr int kGather = 252;
 // Gaussians a block takes at a time (its list padded with the empty slot kGather).
 constexpr int kGroup = 4;
 
-// For each byte of bits, the positions of its set bits as bytes, in order (the rest zero).
-struct SlotBytes {
-  uint64_t b[256];
-};
-constexpr SlotBytes kSlotBytes = [] {
-  SlotBytes t{};
-  for (int m = 0; m < 256; ++m) {
-    int k = 0;
-    for (int bit = 0; bit < 8; ++bit)
-      if (m >> bit & 1) t.b[m] |= uint64_t(bit) << (8 * k++);
-  }
-  return t;
-}();
 static_assert((kGather + 7) / 8 * 8 <= 256 && kGroup <= 8,
               "slot numbers (whole bytes of eight) fit a byte");
 
@@ -138,11 +125,11 @@ template <int BW, int BH, bool kFull, class T, class Res>
         uint8_t* li = lists[blk];
         int cnt = 0;
         // Eight slots a step: their bits for this block, and the set ones' slot numbers as
-        // eight bytes from a table (kSlotBytes), stored whole and advanced by their count.
+        // eight bytes from a table (kBitBytes), stored whole and advanced by their count.
         for (int s0 = 0; s0 < n; s0 += 8) {
           const VI v = vload<VI>(slot_blocks + s0) << (31 - blk);
           const uint32_t bits = sign_bits8(v);
-          const uint64_t idx = kSlotBytes.b[bits] + 0x0101010101010101ull * uint64_t(s0);
+          const uint64_t idx = kBitBytes.b[bits] + 0x0101010101010101ull * uint64_t(s0);
           std::memcpy(li + cnt, &idx, sizeof idx);
           cnt += __builtin_popcount(bits);
         }
@@ -161,9 +148,12 @@ template <int BW, int BH, bool kFull, class T, class Res>
         c2 = vload<V>(C2 + p0), dp{};
       VI lb{};
       if constexpr (kFull) dp = vload<V>(Dp + p0), lb = vload<VI>(last + p0);
-      // The list padded to whole groups with the empty slot (opacity 0: no pixel takes it).
+      // The list padded to whole groups with the empty slot (opacity 0: no pixel takes it),
+      // by one store of a whole group's worth (no loop whose count is cnt's remainder).
       uint8_t* li = lists[blk];
-      for (int i = cnt; i % kGroup; ++i) li[i] = uint8_t(kGather);
+      static_assert(kGroup == 4, "one 4-byte store pads a group");
+      const uint32_t pad = 0x01010101u * uint32_t(kGather);
+      std::memcpy(li + cnt, &pad, sizeof pad);
       // Each Gaussian's alpha over the block (independent of the pixels' state, so the
       // group's exponentials overlap).
       const auto alphas = [&](int i, V* al, VI* in) {
