@@ -132,21 +132,27 @@ template <int BW, int BH, class T, class Res, class Img>
   int bj[kBatch];
   uint32_t bid[kBatch];
   const uint32_t* cells = fwd.entry_cells.data() + start;
+  // The entries of [lo, hi) with a cell where the forward's Gaussian contributed (the others
+  // add nothing), in order, without a branch on each (whether one contributed is unpredictable).
+  const auto contributors = [&](int lo, int hi, int* out) {
+    int n = 0;
+    for (int j = lo; j < hi; ++j) out[n] = j, n += cells[j] != 0;
+    return n;
+  };
+  int bj_next[kBatch];
+  int nk = contributors(std::max(0, jmax - kBatch), jmax, bj);
   for (int hi = jmax; hi > 0; hi -= kBatch) {
     const int lo = std::max(0, hi - kBatch);
-    // The batch's entries with a cell where the forward's Gaussian contributed (the others
-    // add nothing), each with its blocks: those cells' blocks within its pixel box (the box
-    // keeps the backward exact for any record of cells that covers the contributions).
-    // The records of the batch after this one, and the accumulators of this one (9 floats at
-    // a random place of a per-thread array the size of the Gaussians' count): fetched ahead,
-    // the batch's arithmetic then runs without waiting for memory.
-    for (int j = std::max(0, lo - kBatch); j < lo; ++j)
-      if (cells[j]) __builtin_prefetch(&fwd.packed[size_t(kRec) * fwd.point_list[start + j]]);
-    int nk = 0;
-    for (int j = lo; j < hi; ++j) {
-      if (!cells[j]) continue;
-      const int k = nk++;
-      bj[k] = j;
+    // The batch's contributors, each with its blocks: those cells' blocks within its pixel
+    // box (the box keeps the backward exact for any record of cells that covers the
+    // contributions). The records of the batch after this one, and the accumulators of this
+    // one (9 floats at a random place of a per-thread array the size of the Gaussians'
+    // count): fetched ahead, the batch's arithmetic then runs without waiting for memory.
+    const int nk_next = contributors(std::max(0, lo - kBatch), lo, bj_next);
+    for (int k = 0; k < nk_next; ++k)
+      __builtin_prefetch(&fwd.packed[size_t(kRec) * fwd.point_list[start + bj_next[k]]]);
+    for (int k = 0; k < nk; ++k) {
+      const int j = bj[k];
       bid[k] = fwd.point_list[start + j];
       __builtin_prefetch(acc + size_t(kNG) * bid[k], 1);
       __builtin_prefetch(acc + size_t(kNG) * bid[k] + kNG - 1, 1);
@@ -166,15 +172,14 @@ template <int BW, int BH, class T, class Res, class Img>
       // The entry's blocks in the order of their bits.
       uint64_t todo = bblocks[k];
       if (!todo) continue;
-      int blks[kBlocks];
-      int nb = 0;
-      for (; todo; todo &= todo - 1) blks[nb++] = __builtin_ctzll(todo);
+      uint8_t blks[kBlocks + 8];
+      const int nb = bit_positions<kBlocks>(todo, blks);
       const PowerCoeffs<T> pc = power_coeffs(a, b, c);
       const T my = bmy[k];
       // K blocks at a time: their powers and exponentials step by step for all K (the chains
       // side by side), then each block's pixels, then its terms added in block order (the
       // same sums, operation for operation, as one block at a time).
-      const auto blocks = [&]<int K>(const int* bl) {
+      const auto blocks = [&]<int K>(const uint8_t* bl) {
         V pw[K], dx[K], dy[K], Gv[K];
         T gmx[K], gmy[K], gha[K], gb[K], ghc[K];
         V cols[K], rows[K];
@@ -255,6 +260,8 @@ template <int BW, int BH, class T, class Res, class Img>
                            s_bl};
       add_lane_sums<N, T>(sums, acc + size_t(kNG) * bid[k]);
     }
+    std::copy(bj_next, bj_next + nk_next, bj);
+    nk = nk_next;
   }
 }
 
