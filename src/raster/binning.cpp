@@ -23,7 +23,8 @@ inline uint32_t depth_key(T z) {
 // passes of at most 12 bits as the span needs (two for depths within a factor of two, three of
 // 11 bits at most), each over the threads (per-thread digit counts, offsets bucket-major then
 // thread so that equal keys keep their order, then each thread scatters its own range), a pass
-// whose digit is the same for every key skipped. `hist` is scratch.
+// whose digit is the same for every key skipped. `hist` is scratch. Only `ids` comes back
+// sorted: the last pass does not move the keys (nothing reads them after the sort).
 void radix_sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& ids,
                 std::vector<uint32_t>& keys2, std::vector<uint32_t>& ids2,
                 std::vector<uint32_t>& hist, uint32_t lo, uint32_t hi) {
@@ -63,12 +64,15 @@ void radix_sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& ids,
           if (total == n) trivial = true;
         }
       }
-      if (!trivial)
+      // The last pass moves the ids only: nothing reads the keys after the sort.
+      if (!trivial && pass + 1 < passes)
         for (size_t i = b; i < e; ++i) {
           const uint32_t d = h[((keys[i] - lo) >> shift) & mask]++;
           keys2[d] = keys[i];
           ids2[d] = ids[i];
         }
+      else if (!trivial)
+        for (size_t i = b; i < e; ++i) ids2[h[((keys[i] - lo) >> shift) & mask]++] = ids[i];
     }
     if (trivial) continue;
     keys.swap(keys2);
