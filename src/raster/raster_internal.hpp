@@ -113,37 +113,6 @@ uint32_t sign_bits8(const VI&) {
 }
 #endif
 
-// For each byte of bits, the positions of its set bits as bytes, in order (the rest zero).
-struct BitBytes {
-  uint64_t b[256];
-};
-constexpr BitBytes kBitBytes = [] {
-  BitBytes t{};
-  for (int m = 0; m < 256; ++m) {
-    int k = 0;
-    for (int bit = 0; bit < 8; ++bit)
-      if (m >> bit & 1) t.b[m] |= uint64_t(bit) << (8 * k++);
-  }
-  return t;
-}();
-
-// The positions of the set bits of the low kBits bits of `bits`, in order, as bytes into `out`
-// (room for their count + 8), eight bits a step through kBitBytes: a fixed number of steps, no
-// branch on the bits (a loop over the set bits ends after an unpredictable count). Returns the
-// count.
-template <int kBits>
-[[gnu::always_inline]] inline int bit_positions(uint64_t bits, uint8_t* out) {
-  static_assert(kBits % 8 == 0 && kBits <= 64, "whole bytes of a 64-bit word");
-  int n = 0;
-  for (int q = 0; q < kBits / 8; ++q) {
-    const uint32_t byte = uint32_t(bits >> (8 * q)) & 0xffu;
-    const uint64_t pos = kBitBytes.b[byte] + 0x0101010101010101ull * uint64_t(8 * q);
-    std::memcpy(out + n, &pos, sizeof pos);
-    n += __builtin_popcount(byte);
-  }
-  return n;
-}
-
 template <class T, int CW>
 struct Simd;
 template <int CW>

@@ -172,8 +172,11 @@ template <int BW, int BH, class T, class Res, class Img>
       // The entry's blocks in the order of their bits.
       uint64_t todo = bblocks[k];
       if (!todo) continue;
-      uint8_t blks[kBlocks + 8];
-      const int nb = bit_positions<kBlocks>(todo, blks);
+      // (A loop over the set bits: a table's eight bits a step, without a branch on the count,
+      // measured 2-4 % slower here.)
+      uint8_t blks[kBlocks];
+      int nb = 0;
+      for (; todo; todo &= todo - 1) blks[nb++] = uint8_t(__builtin_ctzll(todo));
       const PowerCoeffs<T> pc = power_coeffs(a, b, c);
       const T my = bmy[k];
       // K blocks at a time: their powers and exponentials step by step for all K (the chains

@@ -23,6 +23,20 @@ constexpr int kGather = 252;
 // Gaussians a block takes at a time (its list padded with the empty slot kGather).
 constexpr int kGroup = 4;
 
+// For each byte of bits, the positions of its set bits as bytes, in order (the rest zero).
+struct BitBytes {
+  uint64_t b[256];
+};
+constexpr BitBytes kBitBytes = [] {
+  BitBytes t{};
+  for (int m = 0; m < 256; ++m) {
+    int k = 0;
+    for (int bit = 0; bit < 8; ++bit)
+      if (m >> bit & 1) t.b[m] |= uint64_t(bit) << (8 * k++);
+  }
+  return t;
+}();
+
 static_assert((kGather + 7) / 8 * 8 <= 256 && kGroup <= 8,
               "slot numbers (whole bytes of eight) fit a byte");
 

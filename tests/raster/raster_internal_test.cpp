@@ -1,6 +1,5 @@
 // The tile kernels' shared numeric pieces (src/raster/raster_internal.hpp): the base-2
-// exponential, the exponent from a conic, the minimum, an entry's blocks, and the positions of
-// a word's set bits.
+// exponential, the exponent from a conic, the minimum, and an entry's blocks.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -8,8 +7,6 @@
 #include <cstring>
 #include <limits>
 #include <random>
-#include <type_traits>
-#include <vector>
 
 #include "raster/raster_internal.hpp"
 
@@ -106,35 +103,6 @@ TEST(RasterInternal, EntryBlocksAreTheBoxsBlocks) {
   expect_entry_blocks_match_the_box<4, 2>();
   expect_entry_blocks_match_the_box<4, 1>();
   expect_entry_blocks_match_the_box<8, 1>();
-}
-
-TEST(RasterInternal, BitPositionsAreTheSetBitsInOrder) {
-  std::mt19937_64 rng(7);
-  const auto check = [](auto bits_tag, uint64_t bits) {
-    constexpr int kBits = decltype(bits_tag)::value;
-    if constexpr (kBits < 64) bits &= (uint64_t(1) << kBits) - 1;
-    std::vector<int> ref;
-    for (int b = 0; b < kBits; ++b)
-      if (bits >> b & 1) ref.push_back(b);
-    uint8_t out[kBits + 8];
-    std::memset(out, 0xee, sizeof out);
-    const int n = bit_positions<kBits>(bits, out);
-    ASSERT_EQ(n, int(ref.size())) << bits;
-    for (int k = 0; k < n; ++k) EXPECT_EQ(out[k], ref[size_t(k)]) << bits;
-  };
-  for (uint64_t bits : {uint64_t(0), ~uint64_t(0), uint64_t(1), uint64_t(1) << 63,
-                        uint64_t(0x8000000180000001ull), uint64_t(0xff00)}) {
-    check(std::integral_constant<int, 32>{}, bits);
-    check(std::integral_constant<int, 64>{}, bits);
-  }
-  for (int i = 0; i < 2000; ++i) {
-    // Sparse, dense and uniform words.
-    uint64_t bits = rng();
-    if (i % 3 == 1) bits &= rng() & rng();
-    if (i % 3 == 2) bits |= rng() | rng();
-    check(std::integral_constant<int, 32>{}, bits);
-    check(std::integral_constant<int, 64>{}, bits);
-  }
 }
 
 }  // namespace
