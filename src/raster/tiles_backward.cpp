@@ -67,8 +67,9 @@ template <int BW, int BH, class T, class Res, class Img>
   const uint32_t start = fwd.tile_ranges[2 * tile], end = fwd.tile_ranges[2 * tile + 1];
   if (start == end) return;
   const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
-  alignas(64) T Tt[kTilePixels], Tf[kTilePixels], R0[kTilePixels], R1[kTilePixels], R2[kTilePixels],
-      D0[kTilePixels], D1[kTilePixels], D2[kTilePixels], DA[kTilePixels];
+  // DT: dL/dalpha times the final transmittance (the one place either is read).
+  alignas(64) T Tt[kTilePixels], R0[kTilePixels], R1[kTilePixels], R2[kTilePixels], D0[kTilePixels],
+      D1[kTilePixels], D2[kTilePixels], DT[kTilePixels];
   using SV = Simd<T, N>;
   using V = typename SV::V;
   using VI = typename SV::I;
@@ -89,7 +90,7 @@ template <int BW, int BH, class T, class Res, class Img>
       const int p = block_index<BW, BH>(c, r);
       const size_t pix = size_t(oy + r) * W + ox + size_t(c);
       const V4 ft = vload<V4>(&fwd.final_T[pix]);
-      vstore(Tt + p, ft), vstore(Tf + p, ft);
+      vstore(Tt + p, ft);
       I4 lc;
       std::memcpy(&lc, &fwd.n_contrib[pix], sizeof lc);  // (counts below 2^31)
       vstore(last + p, lc);
@@ -102,7 +103,7 @@ template <int BW, int BH, class T, class Res, class Img>
       vstore(D0 + p, __builtin_shufflevector(t0, e, 0, 1, 2, 5));
       vstore(D1 + p, __builtin_shufflevector(t1, e, 0, 1, 2, 6));
       vstore(D2 + p, __builtin_shufflevector(t2, e, 0, 1, 4, 7));
-      vstore(DA + p, has_da ? vload<V4>(&dLda.data[pix]) : V4{});
+      vstore(DT + p, has_da ? vload<V4>(&dLda.data[pix]) * ft : V4{});
       vstore(R0 + p, V4{} + bg[0]), vstore(R1 + p, V4{} + bg[1]), vstore(R2 + p, V4{} + bg[2]);
     }
   for (int l = 0; l < 4; ++l) jmax = std::max(jmax, int(jmax4[l]));
@@ -111,13 +112,13 @@ template <int BW, int BH, class T, class Res, class Img>
       const int p = block_index<BW, BH>(c, r);
       if (ox + c < W && oy + r < H) {
         const size_t pix = size_t(oy + r) * W + ox + c;
-        Tt[p] = Tf[p] = fwd.final_T[pix];
+        Tt[p] = fwd.final_T[pix];
         last[p] = SI(fwd.n_contrib[pix]);
         D0[p] = T(dLdc.data[3 * pix]), D1[p] = T(dLdc.data[3 * pix + 1]),
         D2[p] = T(dLdc.data[3 * pix + 2]);
-        DA[p] = has_da ? T(dLda.data[pix]) : T(0);
+        DT[p] = has_da ? T(dLda.data[pix]) * Tt[p] : T(0);
       } else {
-        Tt[p] = Tf[p] = 1, last[p] = 0, D0[p] = D1[p] = D2[p] = DA[p] = 0;
+        Tt[p] = 1, last[p] = 0, D0[p] = D1[p] = D2[p] = DT[p] = 0;
       }
       R0[p] = bg[0], R1[p] = bg[1], R2[p] = bg[2];
       jmax = std::max(jmax, int(last[p]));
@@ -205,8 +206,7 @@ template <int BW, int BH, class T, class Res, class Img>
           const V r0 = vload<V>(R0 + p0), r1 = vload<V>(R1 + p0), r2 = vload<V>(R2 + p0);
           const V d0 = vload<V>(D0 + p0), d1 = vload<V>(D1 + p0), d2 = vload<V>(D2 + p0);
           const V e0 = cr - r0, e1 = cg - r1, e2 = cb - r2;
-          const V dLdal =
-              Tj * (e0 * d0 + e1 * d1 + e2 * d2) + vload<V>(DA + p0) * vload<V>(Tf + p0) / om;
+          const V dLdal = Tj * (e0 * d0 + e1 * d1 + e2 * d2) + vload<V>(DT + p0) / om;
           // Alpha where the pixel took the Gaussian, 0 elsewhere (there the colour behind stays
           // and the weight is 0).
           const V alo = ok ? al : V{};
