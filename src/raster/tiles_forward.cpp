@@ -110,7 +110,12 @@ template <int BW, int BH, bool kFull, class T, class Res>
         __builtin_prefetch(&out.packed[size_t(kRec) * out.point_list[e + kPrefetch]]);
       const T* rec = &out.packed[size_t(kRec) * out.point_list[e]];
       uint64_t todo = live & entry_blocks<BW, BH>(rec, ox, oy);
-      if (!todo) {
+      // Image only, the entry's slot is written whether or not it has a live block and kept
+      // only if it has one (below): no branch on it, which turns unpredictable as the tile's
+      // blocks finish (in-process A/B: image-only compositing x0.97; with the backward's
+      // bookkeeping the skipped entries' extra work costs more than the branch, x1.03).
+      constexpr bool kBranchless = kByMasks && !kFull;
+      if (!kBranchless && !todo) {
         if constexpr (kFull) cells_out[e] = 0;
         continue;
       }
@@ -123,6 +128,10 @@ template <int BW, int BH, bool kFull, class T, class Res>
       if constexpr (kByMasks) {
         slot_blocks[n] = uint32_t(todo);
         covered |= todo;
+        if constexpr (kBranchless) {
+          n += todo != 0;
+          continue;
+        }
       } else {
         for (; todo; todo &= todo - 1) {
           const int blk = __builtin_ctzll(todo);
