@@ -175,8 +175,8 @@ template <int BW, int BH, class T, class Res, class Img>
       // The entry's blocks in the order of their bits.
       uint64_t todo = bblocks[k];
       if (!todo) continue;
-      // (A loop over the set bits: a table's eight bits a step, without a branch on the count,
-      // measured 2-4 % slower here.)
+      // (The set bits' positions from a table, eight bits a step with no branch on their
+      // count, measured 2-4 % slower here than this loop.)
       uint8_t blks[kBlocks];
       int nb = 0;
       for (; todo; todo &= todo - 1) blks[nb++] = uint8_t(__builtin_ctzll(todo));
