@@ -372,11 +372,16 @@ template <int CW>
     V t[48];
     for (int k = 0; k < K; ++k)
       t[3 * k] = b[k] * gc0, t[3 * k + 1] = b[k] * gc1, t[3 * k + 2] = b[k] * gc2;
-    for (int f = 0; f < 3 * K; f += 4) {
-      V4 rows[CW];
-      L::untranspose4(t + f, rows);
-      for (int l = 0; l < n; ++l) store_once(&gr.sh[ids[l] * K * 3 + size_t(f)], rows[l]);
-    }
+    // All rows first, then each Gaussian's 3K gradients stored in order: its non-temporal
+    // stores fill one line after another, where storing piece by piece across the block's
+    // Gaussians kept CW lines half-written at once, more than the core's write-combining
+    // buffers hold (in-process A/B: this pass x0.79 on the OpenSplat scene, x0.82 on the
+    // bench scene).
+    V4 rows[12][CW];
+    for (int f = 0; f < 3 * K; f += 4) L::untranspose4(t + f, rows[f / 4]);
+    for (int l = 0; l < n; ++l)
+      for (int f = 0; f < 3 * K; f += 4)
+        store_once(&gr.sh[ids[l] * K * 3 + size_t(f)], rows[f / 4][l]);
   } else {
     for (int l = 0; l < n; ++l) {
       float* d = &gr.sh[ids[l] * K * 3];
