@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <utility>
 
 #include "core/simd.hpp"
 #include "raster/raster_internal.hpp"
@@ -137,6 +138,31 @@ struct PoseInputs {
   bool padded;
 };
 
+// J[3 c + a] = sum over k >= 1 of coef[3 k + c] times the derivative of basis function k along
+// axis a (bx, by, bz: sh::basis_grad), for the K = (deg + 1)^2 coefficients of a degree known
+// at compile time: the derivatives that are zero for every direction (sh::kGradAxes) are left
+// out, a quarter of the products at degree 3.
+template <int K, class V>
+[[gnu::always_inline]] inline void color_dir_derivs(const V* coef, const V* bx, const V* by,
+                                                    const V* bz, V* J) {
+  // (One channel at a time: its three sums stay in registers.)
+  for (int ch = 0; ch < 3; ++ch) {
+    V jx{}, jy{}, jz{};
+    [&]<int... k>(std::integer_sequence<int, k...>) {
+      const auto term = [&]<int kk>() {
+        constexpr int ax = sh::kGradAxes[kk];
+        const V c = coef[3 * kk + ch];
+        if constexpr ((ax & 1) != 0) jx += c * bx[kk];
+        if constexpr ((ax & 2) != 0) jy += c * by[kk];
+        if constexpr ((ax & 4) != 0) jz += c * bz[kk];
+      };
+      (term.template operator()<k + 1>(), ...);
+    }
+    (std::make_integer_sequence<int, K - 1>{});
+    J[3 * ch] = jx, J[3 * ch + 1] = jy, J[3 * ch + 2] = jz;
+  }
+}
+
 // One block of CW Gaussians starting at i0 (n <= CW of them real; the rest are padding).
 template <int CW>
 [[gnu::always_inline]] inline void project_block(const Gaussians& g, const PoseInputs& in,
@@ -224,28 +250,45 @@ template <int CW>
   view_directions<L>(cam, mx, my, mz, ddx, ddy, ddz, dist, has);
   V basis[16];
   sh::basis<V>(deg, ddx, ddy, ddz, basis);
-  V rgb[3];
+  // The coefficients into lanes: by sh_to_lanes where 3K is a multiple of 4, else lane by lane.
+  V coef[48];
   if ((3 * K) % 4 == 0) {
-    // The coefficients into lanes (sh_to_lanes); the same sums in the same order.
-    V coef[48];
     sh_to_lanes<CW>(
         g, [&](int l) { return i0 + size_t(l < n ? l : 0); }, K, coef);
-    for (int ch = 0; ch < 3; ++ch) {
-      V c = L::splat(0.5f);
-      for (int k = 0; k < K; ++k) c += basis[k] * coef[3 * k + ch];
-      rgb[ch] = c;
-    }
   } else {
-    for (int ch = 0; ch < 3; ++ch) {
-      V c = L::splat(0.5f);
-      for (int k = 0; k < K; ++k) {
-        V coef;
-        for (int l = 0; l < CW; ++l)
-          coef[l] = g.sh[((i0 + size_t(l < n ? l : 0)) * K + k) * 3 + ch];
-        c += basis[k] * coef;
-      }
-      rgb[ch] = c;
-    }
+    for (int f = 0; f < 3 * K; ++f)
+      for (int l = 0; l < CW; ++l) coef[f][l] = g.sh[(i0 + size_t(l < n ? l : 0)) * K * 3 + f];
+  }
+  V rgb[3];
+  for (int ch = 0; ch < 3; ++ch) {
+    V c = L::splat(0.5f);
+    for (int k = 0; k < K; ++k) c += basis[k] * coef[3 * k + ch];
+    rgb[ch] = c;
+  }
+  if (!out.color_dirs.empty()) {
+    // A full forward (degree > 0): the colour's derivatives along the view direction, for the
+    // backward (RasterResultT::color_dirs), while the coefficients are in registers; stored
+    // once per Gaussian, in order, by non-temporal stores (the backward reads them after the
+    // compositing has long pushed them out of the cache).
+    V J[kColorDirs];
+    J[9] = J[10] = J[11] = V{};
+    const auto derivs = [&]<int kDeg>() {
+      V bx[16], by[16], bz[16];
+      sh::basis_grad<V>(kDeg, ddx, ddy, ddz, bx, by, bz);
+      color_dir_derivs<(kDeg + 1) * (kDeg + 1)>(coef, bx, by, bz, J);
+    };
+    if (deg == 1)
+      derivs.template operator()<1>();
+    else if (deg == 2)
+      derivs.template operator()<2>();
+    else
+      derivs.template operator()<3>();
+    V4 rows[kColorDirs / 4][CW];
+    for (int f = 0; f < kColorDirs / 4; ++f) L::untranspose4(J + 4 * f, rows[f]);
+    for (int l = 0; l < n; ++l)
+      for (int f = 0; f < kColorDirs / 4; ++f)
+        store_once(&out.color_dirs[size_t(kColorDirs) * (i0 + size_t(l)) + size_t(4 * f)],
+                   rows[f][l]);
   }
   // The render records, 16 floats a Gaussian as four pieces of 4 (written for culled lanes too:
   // only visible Gaussians' records are read).
@@ -393,25 +436,40 @@ template <int CW>
   }
   V gmx = V{}, gmy = V{}, gmz = V{};
   if (deg > 0) {
-    V bx[16], by[16], bz[16];
-    sh::basis_grad<V>(deg, ddx, ddy, ddz, bx, by, bz);
     V gdx = V{}, gdy = V{}, gdz = V{};
-    V coef[48];
-    if (rows4)
-      sh_to_lanes<CW>(
-          g, [&](int l) { return ids[l < n ? l : 0]; }, K, coef);
-    for (int k = 1; k < K; ++k) {
-      V c0, c1, c2;
-      if (rows4) {
-        c0 = coef[3 * k], c1 = coef[3 * k + 1], c2 = coef[3 * k + 2];
-      } else {
-        for (int l = 0; l < CW; ++l) {
-          const float* c = &g.sh[(ids[l < n ? l : 0] * K + k) * 3];
-          c0[l] = c[0], c1[l] = c[1], c2[l] = c[2];
-        }
+    if (!fwd.color_dirs.empty()) {
+      // The forward's colour derivatives along the view direction (RasterResultT::color_dirs):
+      // three rows of 4 a Gaussian into lanes, and the direction's gradient from them.
+      V4 rows[kColorDirs / 4][CW];
+      for (int l = 0; l < CW; ++l) {
+        const float* d = &fwd.color_dirs[size_t(kColorDirs) * ids[l < n ? l : 0]];
+        for (int f = 0; f < kColorDirs / 4; ++f) rows[f][l] = L::load4(d + 4 * f);
       }
-      const V w = c0 * gc0 + c1 * gc1 + c2 * gc2;
-      gdx += w * bx[k], gdy += w * by[k], gdz += w * bz[k];
+      V J[kColorDirs];
+      for (int f = 0; f < kColorDirs / 4; ++f) L::transpose4(rows[f], J + 4 * f);
+      gdx = J[0] * gc0 + J[3] * gc1 + J[6] * gc2;
+      gdy = J[1] * gc0 + J[4] * gc1 + J[7] * gc2;
+      gdz = J[2] * gc0 + J[5] * gc1 + J[8] * gc2;
+    } else {
+      V bx[16], by[16], bz[16];
+      sh::basis_grad<V>(deg, ddx, ddy, ddz, bx, by, bz);
+      V coef[48];
+      if (rows4)
+        sh_to_lanes<CW>(
+            g, [&](int l) { return ids[l < n ? l : 0]; }, K, coef);
+      for (int k = 1; k < K; ++k) {
+        V c0, c1, c2;
+        if (rows4) {
+          c0 = coef[3 * k], c1 = coef[3 * k + 1], c2 = coef[3 * k + 2];
+        } else {
+          for (int l = 0; l < CW; ++l) {
+            const float* c = &g.sh[(ids[l < n ? l : 0] * K + k) * 3];
+            c0[l] = c[0], c1[l] = c[1], c2[l] = c[2];
+          }
+        }
+        const V w = c0 * gc0 + c1 * gc1 + c2 * gc2;
+        gdx += w * bx[k], gdy += w * by[k], gdz += w * bz[k];
+      }
     }
     const V dd = ddx * gdx + ddy * gdy + ddz * gdz;
     gmx = L::sel(has, (gdx - ddx * dd) / dist, V{});
@@ -544,6 +602,8 @@ template <int CW>
   int n = 0;
   constexpr size_t kAhead = 32, kMax = 512;
   uint8_t chain[kMax];
+  // The direction derivatives where the forward stored them (read instead of the coefficients).
+  const float* dirs = g.sh_degree > 0 && !fwd.color_dirs.empty() ? fwd.color_dirs.data() : nullptr;
   for (size_t i0 = b; i0 < e; i0 += kMax) {
     const size_t i1 = std::min(e, i0 + kMax);
     for (size_t i = i0; i < i1; ++i) {
@@ -567,7 +627,13 @@ template <int CW>
       // lies past this stretch), else i's own again (a select, not a branch).
       const size_t j = i + kAhead;
       const size_t ahead = j >= i1 || chain[j - i0] ? j : i;
-      prefetch_sh(g, ahead, 1);
+      if (dirs) {
+        // (48 bytes, on one or two lines.)
+        const char* d = reinterpret_cast<const char*>(dirs + size_t(kColorDirs) * ahead);
+        if (ahead < g.size()) __builtin_prefetch(d), __builtin_prefetch(d + 47);
+      } else {
+        prefetch_sh(g, ahead, 1);
+      }
       if (ahead < g.size()) __builtin_prefetch(&fwd.packed[size_t(kRec) * ahead]);
       if (chain[i - i0]) {
         ids[n++] = i;
@@ -629,6 +695,9 @@ void preprocess_forward_simd(const Gaussians& g, const CameraT<float>& cam, cons
       else
         project_range_avx2(g, in, cam, s, b, e, out);
     }
+#if defined(__SSE2__)
+    _mm_sfence();  // color_dirs' non-temporal stores visible before the threads join
+#endif
   }
 }
 

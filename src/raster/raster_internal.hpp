@@ -51,8 +51,9 @@ struct PhaseTimer {
 };
 
 constexpr int kTS = kTileSize;
-constexpr int kRec = 16;  // packed render record per visible Gaussian
-constexpr int kNG = 9;    // per-Gaussian screen-space grads: mx, my, a, b, c, opacity, r, g, b
+constexpr int kRec = 16;        // packed render record per visible Gaussian
+constexpr int kColorDirs = 12;  // RasterResultT::color_dirs per Gaussian
+constexpr int kNG = 9;  // per-Gaussian screen-space grads: mx, my, a, b, c, opacity, r, g, b
 constexpr int kTilePixels = kTS * kTS;
 constexpr int kBatch = 64;
 // Pixels of a tile row processed together by the baseline kernel (one SIMD vector: SSE2 on the

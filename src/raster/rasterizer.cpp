@@ -109,6 +109,10 @@ void forward(const GaussiansT<T>& g, const GaussianSource* source, const Camera&
   out.depths.resize(N);
   out.tile_rects.resize(2 * N);
   out.records.resize(size_t(raster::kRec) * N);
+  if (std::is_same_v<T, float> && !s.image_only && g.sh_degree > 0)
+    out.color_dirs.resize(size_t(raster::kColorDirs) * N);
+  else
+    out.color_dirs.clear();
   out.final_T.resize(s.image_only ? 0 : size_t(W) * H);
   out.n_contrib.resize(s.image_only ? 0 : size_t(W) * H);
   if (s.image_only) out.entry_cells.clear();  // (sized by the compositing otherwise)
@@ -158,7 +162,8 @@ void rasterize_backward(const GaussiansT<T>& g, const Camera& camera, const Rast
   if (fwd.image_only)
     throw Error("rasterize_backward: the forward result is image_only (no backward state)");
   if (fwd.radii.size() != N || fwd.packed.size() != size_t(kRec) * N || fwd.color.width != W ||
-      fwd.color.height != H || fwd.entry_cells.size() != fwd.point_list.size())
+      fwd.color.height != H || fwd.entry_cells.size() != fwd.point_list.size() ||
+      (!fwd.color_dirs.empty() && fwd.color_dirs.size() != size_t(kColorDirs) * N))
     throw Error("rasterize_backward: forward result does not match the Gaussians / camera");
   if (dLdc.width != W || dLdc.height != H || dLdc.channels != 3)
     throw Error("rasterize_backward: dL/dcolor must be W x H x 3");

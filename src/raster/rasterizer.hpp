@@ -73,6 +73,12 @@ struct RasterResultT {
   // cache line, so each record lies in one line. The records are also the backward's
   // per-Gaussian state: it recomputes the 3D covariance from the parameters.
   LineAlignedVector<T> packed, records;
+  // Per Gaussian, 12 values (written by a full float forward of Gaussians with SH degree > 0,
+  // else empty): [3 c + a] the derivative of colour channel c (before the clamp at zero) with
+  // respect to axis a of the unit view direction, where radii > 0; [9, 12) 0. The backward's
+  // chain rule takes the view direction's gradient from these 9 values instead of reading the
+  // SH coefficients again (192 bytes a Gaussian at degree 3).
+  LineAlignedVector<T> color_dirs;
   std::vector<uint32_t> point_list;   // Gaussian ids, tile-major then depth order
   std::vector<uint32_t> tile_ranges;  // 2 * tiles: [start, end) into point_list
   // Per point_list entry (empty after an image_only forward): the tile's cells of 4 x 2 pixels

@@ -52,6 +52,10 @@ inline void basis(int deg, T x, T y, T z, T* b) {
   b[15] = sh_constant<T>(kC3[6]) * x * (xx - 3 * yy);
 }
 
+// Which of basis_grad's derivatives of b[k] can be non-zero, as bits (1: x, 2: y, 4: z); the
+// others are zero for every direction.
+constexpr uint8_t kGradAxes[16] = {0, 2, 4, 1, 3, 6, 7, 5, 3, 3, 7, 7, 7, 7, 7, 3};
+
 // Partial derivatives of b[k] with respect to x, y, z (treated as independent; T as for basis).
 template <class T>
 inline void basis_grad(int deg, T x, T y, T z, T* bx, T* by, T* bz) {

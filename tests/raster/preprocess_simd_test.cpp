@@ -114,6 +114,65 @@ TEST_P(RasterChainRule, BlocksAgreeWithThePerGaussianLoop) {
   }
 }
 
+// The colour's derivatives along the view direction that a full forward stores for SH degree > 0
+// (RasterResultT::color_dirs): the chain rule takes the view direction's gradient from them; the
+// same gradients to rounding as from the coefficients (a result without them), and at both
+// block widths the same stored values.
+TEST_P(RasterChainRule, StoredColourDerivativesGiveTheCoefficientsGradient) {
+  const Gaussians g = chain_rule_scene(GetParam());
+  const Camera cam = test::test_camera(64, 48);
+  RasterResult fwd;
+  rasterize_forward(g, cam, {}, fwd);
+  if (GetParam() == 0) {
+    EXPECT_TRUE(fwd.color_dirs.empty());
+    return;
+  }
+  ASSERT_EQ(fwd.color_dirs.size(), 12 * g.size());
+  RasterSettings image_only;
+  image_only.image_only = true;
+  RasterResult io;
+  rasterize_forward(g, cam, image_only, io);
+  EXPECT_TRUE(io.color_dirs.empty());
+  if (raster_avx2_available()) {
+    RasterSettings base;
+    base.kernel = RasterKernel::kBaseline;
+    RasterResult f4;
+    rasterize_forward(g, cam, base, f4);
+    for (size_t i = 0; i < g.size(); ++i) {
+      if (fwd.radii[i] == 0) continue;
+      for (int q = 0; q < 12; ++q)
+        EXPECT_EQ(f4.color_dirs[12 * i + size_t(q)], fwd.color_dirs[12 * i + size_t(q)]) << i;
+    }
+  }
+  Image wc(64, 48, 3), wa(64, 48, 1);
+  test::random_upstream(wc, wa, 5);
+  RasterGrads gr;
+  rasterize_backward(g, cam, {}, fwd, wc, wa, gr);
+  RasterResult without = fwd;
+  without.color_dirs.clear();
+  const raster::CameraT<float> c(cam);
+  const int threads = omp_get_max_threads();
+  std::vector<Isa> isas = {Isa::kBaseline};
+  if (raster_avx2_available()) isas.push_back(Isa::kAvx2);
+  for (Isa isa : isas) {
+    RasterGrads a = gr, b = gr;
+    raster::preprocess_backward_simd(g, c, fwd, threads, isa, a);
+    raster::preprocess_backward_simd(g, c, without, threads, isa, b);
+    EXPECT_LT(rel_rms(a.means, b.means), 1e-6);
+    // (The direction's part matters here: without the coefficients of degree > 0 it is zero,
+    // and the means' gradient moves.)
+    Gaussians flat = g;
+    for (size_t i = 0; i < flat.size(); ++i)
+      for (int f = 3; f < 3 * flat.coeffs(); ++f) flat.sh[i * 3 * size_t(flat.coeffs()) + f] = 0;
+    RasterGrads d = gr;
+    raster::preprocess_backward_simd(flat, c, without, threads, isa, d);
+    EXPECT_GT(rel_rms(d.means, b.means), 1e-3);
+    EXPECT_EQ(a.quats, b.quats);
+    EXPECT_EQ(a.sh, b.sh);
+    EXPECT_EQ(a.log_scales, b.log_scales);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(ShDegrees, RasterChainRule, ::testing::Values(0, 1, 2, 3));
 
 }  // namespace
