@@ -21,6 +21,7 @@ struct Opts {
 void run(const Opts& o) {
   if (o.bits != 8 && o.bits != 16) throw ks::Error("--bits must be 8 or 16");
   ks::RasterSettings s;
+  s.image_only = true;  // the colour is all it writes (the same image as a full forward's)
   ks::cli::parse_rgb(o.background, "--background", s.background);
   const ks::Camera cam = ks::Camera::load(o.camera);
   const ks::Gaussians g = ks::read_ply(o.scene);
