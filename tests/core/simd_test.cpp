@@ -10,8 +10,8 @@
 namespace ks {
 namespace {
 
-// Every x of `xs` through log_at_least_one, CW at a time; the largest excess over the exact
-// log(max(x, 1)) (in double), and whether any lane fell below it.
+// Every x of `xs` through log_at_least_one, CW at a time: no lane below the exact log(max(x, 1))
+// (in double), none above it by more than max_excess.
 template <int CW>
 void check_log(const std::vector<float>& xs, double max_excess) {
   using L = Lanes<CW>;
