@@ -1,0 +1,69 @@
+#pragma once
+// The rasterizer on an NVIDIA GPU (CUDA), beside the CPU one (raster/rasterizer.hpp), which stays
+// the reference: the same conventions (docs/rasterizer.md "Conventions": culling, the low-pass,
+// the exact alpha box, alpha = min(0.99, o G), the 1e-4 transmittance stop, depth order with
+// ties by id), the same outputs (colour, alpha, expected depth, radii, depths) and the same
+// gradients (means, log-scales, raw quaternions, opacity logits, SH coefficients, and the 2D
+// means' for density control). Compiled when CMake's KS_CUDA is on (nvcc present); without it
+// every entry point here says so (raster_cuda_compiled() is false, the constructor throws).
+//
+// The Gaussians and every intermediate stay on the device between calls: upload once, run the
+// forward / backward as often as needed, and download only what the caller reads (as training
+// and playback on a GPU would). docs/rasterizer_cuda.md gives the kernels and their figures.
+#include <memory>
+#include <string>
+
+#include "core/camera.hpp"
+#include "core/image.hpp"
+#include "gaussians/gaussians.hpp"
+#include "raster/rasterizer.hpp"
+
+namespace ks::cuda {
+
+// Whether this build has the CUDA backend (CMake -DKS_CUDA=ON).
+bool raster_cuda_compiled();
+// CUDA devices this process can use: 0 without the backend, a driver or a GPU.
+int raster_cuda_devices();
+// Device 0 in a line ("NVIDIA H200, 132 SMs, 139.8 GiB, compute 9.0"), or why there is none.
+std::string raster_cuda_describe();
+
+class RasterizerCuda {
+ public:
+  // On device 0; throws ks::Error when the build has no CUDA or no device can be used.
+  RasterizerCuda();
+  ~RasterizerCuda();
+  RasterizerCuda(const RasterizerCuda&) = delete;
+  RasterizerCuda& operator=(const RasterizerCuda&) = delete;
+
+  // Copies the Gaussians to the device (they stay there until the next upload). Throws for
+  // arrays of inconsistent sizes or an SH degree outside 0..3.
+  void upload(const Gaussians& g);
+  // The forward pass on the device, asynchronously (nothing comes back to the host; the call
+  // returns once the kernels are queued, after one small copy: the number of tile entries).
+  // settings.kernel is ignored; settings.image_only skips the expected depth and the
+  // backward's per-pixel state, as on the CPU.
+  void forward(const Camera& cam, const RasterSettings& settings);
+  // The last forward's images (colour, alpha, and depth unless image_only) and per-Gaussian
+  // radii and depths into `out` (its other fields are left empty).
+  void download(RasterResult& out) const;
+  // The backward pass of the last full forward, given dL/dcolour (W x H x 3) and dL/dalpha
+  // (W x H x 1, or empty): the gradients stay on the device until download_grads.
+  void backward(const Image& dL_dcolor, const Image& dL_dalpha);
+  // The gradients of the last backward into `grads` (written, not accumulated; its scratch is
+  // left alone), in the CPU rasterizer's layout.
+  void download_grads(RasterGrads& grads) const;
+  // Waits for everything queued (for timing).
+  void synchronize() const;
+  // Milliseconds of the last forward / backward between their first and last kernel, from CUDA
+  // events (valid after synchronize()).
+  float last_forward_ms() const;
+  float last_backward_ms() const;
+  // Entries in the last forward's tile lists (a Gaussian counted once per tile it touches).
+  size_t last_tile_entries() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> st_;
+};
+
+}  // namespace ks::cuda
