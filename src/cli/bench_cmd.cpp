@@ -15,6 +15,7 @@
 #include "gaussians/ply.hpp"
 #include "raster/avatar_cloud.hpp"
 #include "raster/rasterizer.hpp"
+#include "raster_cuda/rasterizer_cuda.hpp"
 
 namespace {
 
@@ -22,13 +23,91 @@ struct Opts {
   size_t gaussians = 110000;
   int width = 512, height = 768, frames = 10, threads = 0;
   bool backward = false;
-  std::string ply, camera, save_ply, save_camera, kernel = "auto";
+  std::string ply, camera, save_ply, save_camera, kernel = "auto", device = "cpu";
 };
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// The same measurements on the GPU (--device cuda): the Gaussians uploaded once, each frame's
+// time from the host (the call until the GPU is done, the copy of dL/dcolour and dL/dalpha
+// included for the backward) and from CUDA events around the kernels.
+void run_cuda(const Opts& o, const ks::Gaussians& g, const ks::Camera& cam) {
+  using clock = std::chrono::steady_clock;
+  ks::cuda::RasterizerCuda r;  // throws, saying why, without a build or a device
+  ks::RasterSettings s;
+  ks::Image dc(cam.width, cam.height, 3), da(cam.width, cam.height, 1);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> U(-1e-3f, 1e-3f);
+  for (float& v : dc.data) v = U(rng);
+  for (float& v : da.data) v = U(rng);
+  r.upload(g);
+  for (int w = 0; w < 3; ++w) {  // warm-up: buffers sized, kernels loaded
+    r.forward(cam, s);
+    if (o.backward) r.backward(dc, da);
+    r.synchronize();
+  }
+  auto ms_since = [](clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(clock::now() - t0).count();
+  };
+  std::vector<double> fwd, fwd_k, img, img_k, both, both_k;
+  for (int f = 0; f < o.frames; ++f) {
+    auto t0 = clock::now();
+    r.forward(cam, s);
+    r.synchronize();
+    fwd.push_back(ms_since(t0));
+    fwd_k.push_back(r.last_forward_ms());
+  }
+  const size_t entries = r.last_tile_entries();
+  ks::RasterResult res;
+  r.download(res);
+  ks::RasterSettings si = s;
+  si.image_only = true;
+  for (int f = 0; f < o.frames; ++f) {
+    auto t0 = clock::now();
+    r.forward(cam, si);
+    r.synchronize();
+    img.push_back(ms_since(t0));
+    img_k.push_back(r.last_forward_ms());
+  }
+  if (o.backward)
+    for (int f = 0; f < o.frames; ++f) {
+      auto t0 = clock::now();
+      r.forward(cam, s);
+      r.backward(dc, da);
+      r.synchronize();
+      both.push_back(ms_since(t0));
+      both_k.push_back(r.last_forward_ms() + r.last_backward_ms());
+    }
+  size_t visible = 0;
+  for (int rad : res.radii) visible += rad > 0;
+  double cov = 0;
+  for (float a : res.alpha.data) cov += a;
+  std::printf(
+      "gaussians %zu (visible %zu), %dx%d, device cuda (%s), tile entries %zu, coverage "
+      "%.1f%%\n",
+      g.size(), visible, cam.width, cam.height, ks::cuda::raster_cuda_describe().c_str(), entries,
+      100.0 * cov / double(res.alpha.data.size()));
+  const double mf = median(fwd), mi = median(img);
+  std::printf("forward: median %.3f ms, min %.3f ms over %d frames (kernels %.3f ms)\n", mf,
+              *std::min_element(fwd.begin(), fwd.end()), o.frames, median(fwd_k));
+  std::printf(
+      "forward, image only (playback): median %.3f ms, min %.3f ms (%.0f FPS; kernels "
+      "%.3f ms)\n",
+      mi, *std::min_element(img.begin(), img.end()), 1000.0 / mi, median(img_k));
+  if (o.backward) {
+    const double mb = median(both);
+    std::printf(
+        "forward+backward: median %.3f ms, min %.3f ms over %d frames (kernels %.3f ms; "
+        "the rest is the copy of dL/dcolour and dL/dalpha)\n",
+        mb, *std::min_element(both.begin(), both.end()), o.frames, median(both_k));
+    std::printf("forward %.0f FPS, forward+backward %.3f ms\n", 1000.0 / mf, mb);
+  } else {
+    std::printf("forward %.0f FPS\n", 1000.0 / mf);
+  }
 }
 
 void run(const Opts& o) {
@@ -43,6 +122,7 @@ void run(const Opts& o) {
       o.camera.empty() ? ks::avatar_camera(o.width, o.height) : ks::Camera::load(o.camera);
   if (!o.save_ply.empty()) ks::write_ply(o.save_ply, g);
   if (!o.save_camera.empty()) cam.save(o.save_camera);
+  if (o.device == "cuda") return run_cuda(o, g, cam);
   ks::RasterSettings s;
   s.kernel = ks::raster_kernel_from_name(o.kernel);
   const char* kernel = ks::raster_kernel_name(s);  // throws for one the CPU lacks
@@ -132,6 +212,11 @@ ks::cli::CommandGroup group(900, [](CLI::App& app) {
                   "tile kernel: auto (AVX-512 where the CPU has it, else AVX2 where it has that, "
                   "else baseline), baseline, avx2 or avx512 (an error where the CPU lacks it)")
       ->check(CLI::IsMember({"auto", "baseline", "avx2", "avx512"}))
+      ->capture_default_str();
+  sub->add_option("--device", o->device,
+                  "cpu, or cuda: the GPU rasterizer (a build with -DKS_CUDA=ON and an NVIDIA GPU; "
+                  "--threads and --kernel do not apply)")
+      ->check(CLI::IsMember({"cpu", "cuda"}))
       ->capture_default_str();
   sub->add_option("--ply", o->ply,
                   "time this 3DGS .ply instead of the generated cloud (--gaussians is ignored)");
