@@ -10,6 +10,7 @@
 #include "core/fileio.hpp"
 #include "dataset/dataset.hpp"
 #include "evaluate/evaluate.hpp"
+#include "raster_cuda/rasterizer_cuda.hpp"
 #include "reconstruct/density.hpp"
 #include "reconstruct/reconstruct.hpp"
 #include "reconstruct/trainer.hpp"
@@ -36,6 +37,7 @@ struct Args {
   std::string garment = garment_name(opt.garment.mode);
   bool quiet = false;
   float eval_scale = 1.f;
+  std::string device = opt.cuda_raster ? "cuda" : "cpu";
 };
 
 ks::cli::CommandGroup group(40, [](CLI::App& app) {
@@ -173,9 +175,17 @@ ks::cli::CommandGroup group(40, [](CLI::App& app) {
   auto* eval_scale = sub->add_option("--eval-scale", args->eval_scale,
                                      "Evaluation resolution relative to images (with --eval)")
                          ->capture_default_str();
+  sub->add_option("--device", args->device,
+                  "cpu, or cuda: the rasterizer's forward and backward on an NVIDIA GPU (a build "
+                  "with -DKS_CUDA=ON); the rest of each step stays on the CPU")
+      ->check(CLI::IsMember({"cpu", "cuda"}))
+      ->capture_default_str();
   sub->add_flag("--quiet,-q", args->quiet, "No progress bar");
   sub->callback([args, sub, fine_scale, eval_out, eval_scale] {
     Args& a = *args;
+    a.opt.cuda_raster = a.device == "cuda";
+    if (a.opt.cuda_raster && ks::cuda::raster_cuda_devices() == 0)
+      throw ks::Error("--device cuda: " + ks::cuda::raster_cuda_describe());
     // Options that would be silently ignored in this combination.
     if (a.eval_dataset.empty() && (eval_out->count() > 0 || eval_scale->count() > 0))
       throw ks::Error(std::string(eval_out->count() > 0 ? "--eval-out" : "--eval-scale") +

@@ -105,6 +105,10 @@ struct TrainOptions {
   GarmentOptions garment;
   VisibilityOptions visibility;       // decode and draw only what a frame can see
   DensityControl* density = nullptr;  // not owned; called after every step
+  // The rasterizer's forward and backward on an NVIDIA GPU (raster_cuda/; a build with
+  // KS_CUDA): the Gaussians go up and their gradients come back each step, and everything else
+  // in the step (decoders, skinning, losses, Adam) stays on the CPU.
+  bool cuda_raster = false;
   bool progress = true;
   int log_every = 0;  // > 0: print "it loss psnr" lines to stderr every this many iterations
 };

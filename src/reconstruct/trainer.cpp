@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <numeric>
 #include <random>
 
@@ -18,6 +19,7 @@
 #include "mesh/morton.hpp"
 #include "mesh/trimesh.hpp"
 #include "raster/rasterizer.hpp"
+#include "raster_cuda/rasterizer_cuda.hpp"
 #include "reconstruct/components/garment.hpp"
 #include "reconstruct/components/learned_skin.hpp"
 #include "reconstruct/components/vertex_color.hpp"
@@ -103,6 +105,7 @@ struct Trainer::Impl {
   RasterSettings rs;
   RasterResult rr;
   RasterGrads rg;
+  std::unique_ptr<cuda::RasterizerCuda> gpu;  // TrainOptions::cuda_raster
   Image dcolor, dalpha;
   // Visibility (reconstruct/visibility.hpp): the Gaussians the frame can see, the last decode
   // posed for the frame, and whether a whole decode of this vertex set has run.
@@ -131,6 +134,7 @@ struct Trainer::Impl {
     setup_decoder();
     setup_optimizer();
     for (int k = 0; k < 3; ++k) rs.background[k] = ds.background[k];
+    if (opt.cuda_raster) gpu = std::make_unique<cuda::RasterizerCuda>();  // throws without one
     // One pass over the frames: each frame round(weight) times (the dataset's per-frame weight).
     order.clear();
     for (size_t i = 0; i < frames.size(); ++i) {
@@ -329,7 +333,13 @@ struct Trainer::Impl {
         else
           posed.opacity_logits[size_t(i)] = kCulledOpacityLogit;
     }
-    rasterize_forward(posed, fr.camera, rs, rr);
+    if (gpu) {
+      gpu->upload(posed);
+      gpu->forward(fr.camera, rs);
+      gpu->download(rr);
+    } else {
+      rasterize_forward(posed, fr.camera, rs, rr);
+    }
 
     // Image and mask losses.
     StepLosses L;
@@ -365,7 +375,12 @@ struct Trainer::Impl {
             double(3 * P);
 
     // Backward through the rasterizer and LBS.
-    rasterize_backward(posed, fr.camera, rs, rr, dcolor, dalpha, rg);
+    if (gpu) {
+      gpu->backward(dcolor, dalpha);
+      gpu->download_grads(rg);
+    } else {
+      rasterize_backward(posed, fr.camera, rs, rr, dcolor, dalpha, rg);
+    }
     lbs_backward(lbs_cache, rg.means, rg.quats, dmeans_c, dquats_c);
 
     // Regularisers on offsets and colours.
