@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 
 #include "animate/framing.hpp"
 #include "animate/posed_render.hpp"
@@ -16,6 +17,7 @@
 #include "io/video.hpp"
 #include "motion/motion.hpp"
 #include "raster/rasterizer.hpp"
+#include "raster_cuda/rasterizer_cuda.hpp"
 
 namespace ks {
 
@@ -69,8 +71,10 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
   BackfaceCull cull;
   cull.normals = &normals;
   cull.threshold = o.backface_cull;
-  Gaussians g;  // the posed Gaussians, for the .ply files
+  Gaussians g;  // the posed Gaussians, for the .ply files or the GPU
   PosedRenderer renderer(avatar);
+  std::unique_ptr<cuda::RasterizerCuda> gpu;
+  if (o.cuda) gpu = std::make_unique<cuda::RasterizerCuda>();  // throws, saying why, without one
   RasterResult rr;
   Progress prog("animate", o.progress ? F : 0);
   double render_s = 0;
@@ -80,7 +84,15 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
     cull.eye = cams[f].centre();
     // Posed as the projection reads them (the same image as posing first), unless the posed
     // Gaussians are written too: then posed once and rendered.
-    if (o.ply) {
+    if (gpu) {
+      pose_avatar(avatar, motion.frames[f], g, rep.culled ? &cull : nullptr, f > 0);
+      if (f == 0)
+        gpu->upload(g);
+      else
+        gpu->upload_posed(g);  // scales and SH as posed from the same avatar
+      gpu->forward(cams[f], rs);
+      gpu->download(rr);
+    } else if (o.ply) {
       pose_avatar(avatar, motion.frames[f], g, nullptr, f > 0);
       rasterize_forward(g, cams[f], rs, rr);
     } else {

@@ -9,6 +9,7 @@
 #include "cli/parse.hpp"
 #include "cli/registry.hpp"
 #include "core/error.hpp"
+#include "raster_cuda/rasterizer_cuda.hpp"
 
 namespace fs = std::filesystem;
 
@@ -23,6 +24,7 @@ struct AnimateArgs {
   int frames = d.frames;
   bool ply = d.ply;
   float backface_cull = d.backface_cull;  // 1 = off; 0.4 is a good trade on close-fitting clothes
+  std::string device = d.cuda ? "cuda" : "cpu";
 };
 
 using namespace ks;
@@ -37,6 +39,9 @@ void run_animate(const AnimateArgs& args) {
   o.frames = args.frames;
   o.ply = args.ply;
   o.backface_cull = args.backface_cull;
+  o.cuda = args.device == "cuda";
+  if (o.cuda && cuda::raster_cuda_devices() == 0)
+    throw Error("--device cuda: " + cuda::raster_cuda_describe());
   if (o.frames < 0) throw Error("--frames must be >= 0");
   const Avatar avatar = load_avatar(args.avatar);
   const PlaybackReport r = render_playback(avatar, args.out, o);
@@ -52,8 +57,9 @@ void run_animate(const AnimateArgs& args) {
   }
   char cull_note[32] = "off";
   if (r.culled) std::snprintf(cull_note, sizeof cull_note, "at cos > %.2f", args.backface_cull);
-  std::printf("animate: pose + render %.1f ms per frame (%.1f fps), back-face culling %s\n",
-              r.render_ms, 1e3 / std::max(r.render_ms, 1e-9), cull_note);
+  std::printf("animate: pose + render %.1f ms per frame (%.1f fps), back-face culling %s%s\n",
+              r.render_ms, 1e3 / std::max(r.render_ms, 1e-9), cull_note,
+              o.cuda ? ", rasterized on the GPU" : "");
 }
 
 ks::cli::CommandGroup group(70, [](CLI::App& app) {
@@ -77,6 +83,11 @@ ks::cli::CommandGroup group(70, [](CLI::App& app) {
                   "clothing; 1 = off, render every Gaussian)")
       ->capture_default_str();
   sub->add_option("--background", args->background, "Background colour r,g,b in [0,1]")
+      ->capture_default_str();
+  sub->add_option("--device", args->device,
+                  "cpu, or cuda: rasterize on an NVIDIA GPU (a build with -DKS_CUDA=ON); each "
+                  "frame is still posed on the CPU")
+      ->check(CLI::IsMember({"cpu", "cuda"}))
       ->capture_default_str();
   sub->callback([args] { run_animate(*args); });
 });

@@ -38,6 +38,10 @@ class RasterizerCuda {
   // Copies the Gaussians to the device (they stay there until the next upload). Throws for
   // arrays of inconsistent sizes or an SH degree outside 0..3.
   void upload(const Gaussians& g);
+  // Only the means, rotations and opacity logits (what posing changes: playback's frames); the
+  // scales and SH stay as the last upload's, which must have had the same count and degree
+  // (ks::Error otherwise).
+  void upload_posed(const Gaussians& g);
   // The forward pass on the device, asynchronously (nothing comes back to the host; the call
   // returns once the kernels are queued, after one small copy: the number of tile entries).
   // settings.kernel is ignored; settings.image_only skips the expected depth and the

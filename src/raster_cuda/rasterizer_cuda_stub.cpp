@@ -32,6 +32,9 @@ RasterizerCuda::~RasterizerCuda() = default;
 void RasterizerCuda::upload(const Gaussians&) {
   no_cuda();
 }
+void RasterizerCuda::upload_posed(const Gaussians&) {
+  no_cuda();
+}
 void RasterizerCuda::forward(const Camera&, const RasterSettings&) {
   no_cuda();
 }

@@ -191,6 +191,33 @@ TEST(RasterCuda, GradientsMatchFiniteDifferencesOfTheDoublePath) {
   EXPECT_EQ(checked, 5 * (3 + 3 + 4 + 1 + 16 * 3));
 }
 
+// Playback's upload: new means, rotations and opacities with the last upload's scales and SH
+// render as a whole upload of the same Gaussians does.
+TEST(RasterCuda, PosedUploadKeepsScalesAndColours) {
+  KS_NEED_GPU();
+  const Gaussians g = make_avatar_cloud(5000, 2);
+  Gaussians moved = g;
+  for (size_t i = 0; i < moved.size(); ++i) {
+    moved.means[3 * i] += 0.01f;
+    moved.quats[4 * i + 1] += 0.1f;
+    moved.opacity_logits[i] -= 0.2f;
+  }
+  const Camera cam = avatar_camera(128, 192);
+  cuda::RasterizerCuda a, b;
+  RasterResult ra, rb;
+  a.upload(g);
+  a.upload_posed(moved);
+  a.forward(cam, RasterSettings{});
+  a.download(ra);
+  b.upload(moved);
+  b.forward(cam, RasterSettings{});
+  b.download(rb);
+  EXPECT_EQ(ra.color.data, rb.color.data);
+  EXPECT_EQ(ra.alpha.data, rb.alpha.data);
+  Gaussians fewer = make_avatar_cloud(4000, 2);
+  EXPECT_THROW(a.upload_posed(fewer), Error);
+}
+
 TEST(RasterCuda, BadInputsAreRefused) {
   KS_NEED_GPU();
   cuda::RasterizerCuda r;
