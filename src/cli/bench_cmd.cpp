@@ -32,6 +32,58 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+// Upstream gradients for the backward: small, fixed, reproducible.
+void make_upstream(const ks::Camera& cam, ks::Image& dc, ks::Image& da) {
+  dc = ks::Image(cam.width, cam.height, 3);
+  da = ks::Image(cam.width, cam.height, 1);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> U(-1e-3f, 1e-3f);
+  for (float& v : dc.data) v = U(rng);
+  for (float& v : da.data) v = U(rng);
+}
+
+// Visible Gaussians and the image's mean alpha (percent).
+void scene_summary(const std::vector<int>& radii, const ks::Image& alpha, size_t& visible,
+                   double& coverage) {
+  visible = 0;
+  for (int rad : radii) visible += rad > 0;
+  double cov = 0;
+  for (float a : alpha.data) cov += a;
+  coverage = 100.0 * cov / double(std::max<size_t>(1, alpha.data.size()));
+}
+
+// The three timings' lines (per-frame wall times in ms), each with the caller's note; `digits`
+// and `fps_digits` after the point for milliseconds and frames a second.
+struct Timings {
+  std::vector<double> fwd, img, both;
+  std::string fwd_note, img_note, both_note;
+  int digits = 2, fps_digits = 1;
+};
+
+void print_timings(const Timings& t, int frames) {
+  const int d = t.digits, fd = t.fps_digits;
+  auto least = [](const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); };
+  const double mf = median(t.fwd), mi = median(t.img);
+  std::printf("forward: median %.*f ms, min %.*f ms over %d frames%s\n", d, mf, d, least(t.fwd),
+              frames, t.fwd_note.c_str());
+  std::printf("forward, image only (playback): median %.*f ms, min %.*f ms (%.*f FPS%s)\n", d, mi,
+              d, least(t.img), fd, 1000.0 / mi, t.img_note.c_str());
+  if (!t.both.empty()) {
+    const double mb = median(t.both);
+    std::printf("forward+backward: median %.*f ms, min %.*f ms over %d frames%s\n", d, mb, d,
+                least(t.both), frames, t.both_note.c_str());
+    std::printf("forward %.*f FPS, forward+backward %.*f ms\n", fd, 1000.0 / mf, d, mb);
+  } else {
+    std::printf("forward %.*f FPS\n", fd, 1000.0 / mf);
+  }
+}
+
+std::string note(const char* fmt, double v) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, fmt, v);
+  return buf;
+}
+
 // The same measurements on the GPU (--device cuda): the Gaussians uploaded once, each frame's
 // time from the host (the call until the GPU is done, the copy of dL/dcolour and dL/dalpha
 // included for the backward) and from CUDA events around the kernels.
@@ -39,11 +91,8 @@ void run_cuda(const Opts& o, const ks::Gaussians& g, const ks::Camera& cam) {
   using clock = std::chrono::steady_clock;
   ks::cuda::RasterizerCuda r;  // throws, saying why, without a build or a device
   ks::RasterSettings s;
-  ks::Image dc(cam.width, cam.height, 3), da(cam.width, cam.height, 1);
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> U(-1e-3f, 1e-3f);
-  for (float& v : dc.data) v = U(rng);
-  for (float& v : da.data) v = U(rng);
+  ks::Image dc, da;
+  make_upstream(cam, dc, da);
   r.upload(g);
   for (int w = 0; w < 3; ++w) {  // warm-up: buffers sized, kernels loaded
     r.forward(cam, s);
@@ -53,12 +102,14 @@ void run_cuda(const Opts& o, const ks::Gaussians& g, const ks::Camera& cam) {
   auto ms_since = [](clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(clock::now() - t0).count();
   };
-  std::vector<double> fwd, fwd_k, img, img_k, both, both_k;
+  Timings t;
+  t.digits = 3, t.fps_digits = 0;
+  std::vector<double> fwd_k, img_k, both_k;
   for (int f = 0; f < o.frames; ++f) {
     auto t0 = clock::now();
     r.forward(cam, s);
     r.synchronize();
-    fwd.push_back(ms_since(t0));
+    t.fwd.push_back(ms_since(t0));
     fwd_k.push_back(r.last_forward_ms());
   }
   const size_t entries = r.last_tile_entries();
@@ -70,7 +121,7 @@ void run_cuda(const Opts& o, const ks::Gaussians& g, const ks::Camera& cam) {
     auto t0 = clock::now();
     r.forward(cam, si);
     r.synchronize();
-    img.push_back(ms_since(t0));
+    t.img.push_back(ms_since(t0));
     img_k.push_back(r.last_forward_ms());
   }
   if (o.backward)
@@ -79,35 +130,23 @@ void run_cuda(const Opts& o, const ks::Gaussians& g, const ks::Camera& cam) {
       r.forward(cam, s);
       r.backward(dc, da);
       r.synchronize();
-      both.push_back(ms_since(t0));
+      t.both.push_back(ms_since(t0));
       both_k.push_back(r.last_forward_ms() + r.last_backward_ms());
     }
-  size_t visible = 0;
-  for (int rad : res.radii) visible += rad > 0;
-  double cov = 0;
-  for (float a : res.alpha.data) cov += a;
+  size_t visible;
+  double coverage;
+  scene_summary(res.radii, res.alpha, visible, coverage);
   std::printf(
       "gaussians %zu (visible %zu), %dx%d, device cuda (%s), tile entries %zu, coverage "
       "%.1f%%\n",
       g.size(), visible, cam.width, cam.height, ks::cuda::raster_cuda_describe().c_str(), entries,
-      100.0 * cov / double(res.alpha.data.size()));
-  const double mf = median(fwd), mi = median(img);
-  std::printf("forward: median %.3f ms, min %.3f ms over %d frames (kernels %.3f ms)\n", mf,
-              *std::min_element(fwd.begin(), fwd.end()), o.frames, median(fwd_k));
-  std::printf(
-      "forward, image only (playback): median %.3f ms, min %.3f ms (%.0f FPS; kernels "
-      "%.3f ms)\n",
-      mi, *std::min_element(img.begin(), img.end()), 1000.0 / mi, median(img_k));
-  if (o.backward) {
-    const double mb = median(both);
-    std::printf(
-        "forward+backward: median %.3f ms, min %.3f ms over %d frames (kernels %.3f ms; "
-        "the rest is the copy of dL/dcolour and dL/dalpha)\n",
-        mb, *std::min_element(both.begin(), both.end()), o.frames, median(both_k));
-    std::printf("forward %.0f FPS, forward+backward %.3f ms\n", 1000.0 / mf, mb);
-  } else {
-    std::printf("forward %.0f FPS\n", 1000.0 / mf);
-  }
+      coverage);
+  t.fwd_note = note(" (kernels %.3f ms)", median(fwd_k));
+  t.img_note = note("; kernels %.3f ms", median(img_k));
+  if (o.backward)
+    t.both_note = note(" (kernels %.3f ms; the rest is the copy of dL/dcolour and dL/dalpha)",
+                       median(both_k));
+  print_timings(t, o.frames);
 }
 
 void run(const Opts& o) {
@@ -128,11 +167,8 @@ void run(const Opts& o) {
   const char* kernel = ks::raster_kernel_name(s);  // throws for one the CPU lacks
   ks::RasterResult r;
   ks::RasterGrads gr;
-  ks::Image dc(cam.width, cam.height, 3), da(cam.width, cam.height, 1);
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> U(-1e-3f, 1e-3f);
-  for (float& v : dc.data) v = U(rng);
-  for (float& v : da.data) v = U(rng);
+  ks::Image dc, da;
+  make_upstream(cam, dc, da);
   auto ms_since = [](clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(clock::now() - t0).count();
   };
@@ -143,12 +179,12 @@ void run(const Opts& o) {
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
   };
-  std::vector<double> fwd, both;
+  Timings t;
   const double cpu0 = cpu_ms();
   for (int f = 0; f < o.frames; ++f) {
     auto t0 = clock::now();
     rasterize_forward(g, cam, s, r);
-    fwd.push_back(ms_since(t0));
+    t.fwd.push_back(ms_since(t0));
   }
   const double cpu_fwd = (cpu_ms() - cpu0) / o.frames;
   // The playback forward: colour and alpha only.
@@ -156,11 +192,10 @@ void run(const Opts& o) {
   si.image_only = true;
   ks::RasterResult ri;
   rasterize_forward(g, cam, si, ri);
-  std::vector<double> img;
   for (int f = 0; f < o.frames; ++f) {
     auto t0 = clock::now();
     rasterize_forward(g, cam, si, ri);
-    img.push_back(ms_since(t0));
+    t.img.push_back(ms_since(t0));
   }
   const double cpu1 = cpu_ms();
   if (o.backward)
@@ -168,32 +203,20 @@ void run(const Opts& o) {
       auto t0 = clock::now();
       rasterize_forward(g, cam, s, r);
       rasterize_backward(g, cam, s, r, dc, da, gr);
-      both.push_back(ms_since(t0));
+      t.both.push_back(ms_since(t0));
     }
   const double cpu_both = o.backward ? (cpu_ms() - cpu1) / o.frames : 0.0;
-  size_t visible = 0;
-  for (int rad : r.radii) visible += rad > 0;
-  double cov = 0;
-  for (float a : r.alpha.data) cov += a;
+  size_t visible;
+  double coverage;
+  scene_summary(r.radii, r.alpha, visible, coverage);
   std::printf(
       "gaussians %zu (visible %zu), %dx%d, threads %d, tile entries %zu, coverage %.1f%%, kernel "
       "%s\n",
       g.size(), visible, cam.width, cam.height, omp_get_max_threads(), r.point_list.size(),
-      100.0 * cov / double(r.alpha.data.size()), kernel);
-  const double mf = median(fwd), mi = median(img);
-  std::printf("forward: median %.2f ms, min %.2f ms over %d frames (CPU time %.1f ms/frame)\n", mf,
-              *std::min_element(fwd.begin(), fwd.end()), o.frames, cpu_fwd);
-  std::printf("forward, image only (playback): median %.2f ms, min %.2f ms (%.1f FPS)\n", mi,
-              *std::min_element(img.begin(), img.end()), 1000.0 / mi);
-  if (o.backward) {
-    const double mb = median(both);
-    std::printf(
-        "forward+backward: median %.2f ms, min %.2f ms over %d frames (CPU time %.1f ms/frame)\n",
-        mb, *std::min_element(both.begin(), both.end()), o.frames, cpu_both);
-    std::printf("forward %.1f FPS, forward+backward %.2f ms\n", 1000.0 / mf, mb);
-  } else {
-    std::printf("forward %.1f FPS\n", 1000.0 / mf);
-  }
+      coverage, kernel);
+  t.fwd_note = note(" (CPU time %.1f ms/frame)", cpu_fwd);
+  if (o.backward) t.both_note = note(" (CPU time %.1f ms/frame)", cpu_both);
+  print_timings(t, o.frames);
 }
 
 ks::cli::CommandGroup group(900, [](CLI::App& app) {
