@@ -2,6 +2,8 @@
 #include <cstdio>
 
 #include "cli/registry.hpp"
+#include "raster/rasterizer.hpp"
+#include "raster_cuda/rasterizer_cuda.hpp"
 
 namespace {
 ks::cli::CommandGroup group(1000, [](CLI::App& app) {
@@ -15,6 +17,11 @@ ks::cli::CommandGroup group(1000, [](CLI::App& app) {
     const char* isa = "baseline x86-64";
 #endif
     std::printf("kinesplat 0.1.0 (C++20, compiled for %s)\n", isa);
+    ks::RasterSettings s;
+    std::printf("rasterizer tile kernel on this CPU: %s\n", ks::raster_kernel_name(s));
+    std::printf("CUDA rasterizer: %s\n", ks::cuda::raster_cuda_compiled()
+                                             ? ks::cuda::raster_cuda_describe().c_str()
+                                             : "not in this build (cmake -DKS_CUDA=ON)");
   });
 });
 }  // namespace
