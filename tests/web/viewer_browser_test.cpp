@@ -257,22 +257,32 @@ TEST(ViewerBrowser, PlaysTheAvatarAndMatchesTheCppRender) {
                            " --frame " + std::to_string(frame) + " --motion wave --bg " + bg +
                            " --play-shots --no-ui --width " + std::to_string(W) + " --height " +
                            std::to_string(H) + " >" + quote(dir / "capture.log") + " 2>&1";
-  const int rc = std::system(node.c_str());
+  // Screenshots at two times differ: the avatar moves. Software WebGL draws a frame or two a
+  // second, slower still when other tests share the cores, and the wave motion moves only the
+  // arm, which it holds down at both ends of its loop; in one loaded CI run the two shots
+  // (frames 79 and 63 by the page's count) showed no movement. So up to three captures.
+  int rc = 0;
+  nlohmann::json result;
+  Image play1, play2;
+  double moved = 0;
+  for (int attempt = 0; attempt < 3 && moved <= 0.002; ++attempt) {
+    rc = std::system(node.c_str());
+    if (rc != 0) break;
+    result = read_json(shots + "/result.json");
+    play1 = read_image(shots + "/play1.png", 3);
+    play2 = read_image(shots + "/play2.png", 3);
+    moved = changed_share(play1, play2, 8.f / 255.f);
+  }
   const int view_status = view.interrupt();
   ASSERT_EQ(rc, 0) << read_file_text(dir / "capture.log");
   EXPECT_EQ(view_status, 0) << view.text;
   EXPECT_NE(view.text.find("view: stopped"), std::string::npos) << view.text;
   EXPECT_FALSE(fs::exists(site.parent_path())) << "the temporary site was not removed";
-
-  // Screenshots at two times differ: the avatar moves.
-  const nlohmann::json result = read_json(shots + "/result.json");
   EXPECT_EQ(result["fixed"]["numSplats"], avatar.num_gaussians());
   EXPECT_EQ(result["fixed"]["frame"], frame);
   EXPECT_NE(result["play1"]["frame"], result["play2"]["frame"]);
-  const Image play1 = read_image(shots + "/play1.png", 3),
-              play2 = read_image(shots + "/play2.png", 3);
-  EXPECT_GT(changed_share(play1, play2, 8.f / 255.f), 0.002)
-      << "frames " << result["play1"]["frame"] << " and " << result["play2"]["frame"];
+  EXPECT_GT(moved, 0.002) << "frames " << result["play1"]["frame"] << " and "
+                          << result["play2"]["frame"];
 
   // The page at the fixed frame and camera matches kinesplat's render of them.
   const Image page = read_image(shots + "/fixed.png", 3);
