@@ -14,28 +14,11 @@ out=${1:-build-cuda}
 archs=${2:-90}
 obj=$out/obj
 mkdir -p "$obj"
-flags=(-std=c++20 -O3 -DNDEBUG -fopenmp -fno-math-errno -Wall -Wextra -Wno-psabi -Isrc -Itests
-       -isystem /usr/include/eigen3)
 nvcc=${NVCC:-nvcc}
 gencode=()
 for a in ${archs//,/ }; do gencode+=(-gencode "arch=compute_$a,code=sm_$a"); done
-pids=()
-compile() {  # source object [extra flags]
-  g++ "${flags[@]}" "${@:3}" -c "$1" -o "$2" &
-  pids+=($!)
-  if [ ${#pids[@]} -ge "$(nproc)" ]; then wait "${pids[0]}"; pids=("${pids[@]:1}"); fi
-}
-lib=()
-for f in src/raster/*.cpp; do
-  o=$obj/raster_$(basename "$f" .cpp).o
-  compile "$f" "$o" -ffp-contract=off
-  lib+=("$o")
-done
-for f in src/core/camera.cpp src/core/fileio.cpp src/gaussians/ply.cpp; do
-  o=$obj/$(basename "$(dirname "$f")")_$(basename "$f" .cpp).o
-  compile "$f" "$o"
-  lib+=("$o")
-done
+source bench/raster_build_common.sh
+compile_rasterizer
 "$nvcc" -std=c++17 -O3 -DNDEBUG "${gencode[@]}" -Isrc -isystem /usr/include/eigen3 \
   -Xcompiler -Wall,-Wextra -c src/raster_cuda/rasterizer_cuda.cu -o "$obj/rasterizer_cuda.o" &
 pids+=($!)
@@ -52,7 +35,7 @@ for f in tests/raster_cuda/rasterizer_cuda_test.cpp tests/raster/raster_test.cpp
   compile "$f" "$o" -DKS_CLI_PATH=\"none\" -DKS_SOURCE_DIR=\"none\"
   tests+=("$o")
 done
-for p in "${pids[@]}"; do wait "$p"; done
+wait_all
 cudart=$(dirname "$(command -v "$nvcc")")/../lib64/libcudart_static.a
 gomp=$(g++ -print-file-name=libgomp.a)
 link() {

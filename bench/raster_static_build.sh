@@ -10,24 +10,8 @@ cd "$(dirname "$0")/.."
 out=${1:-build-static}
 obj=$out/obj
 mkdir -p "$obj"
-flags=(-std=c++20 -O3 -DNDEBUG -fopenmp -fno-math-errno -Wall -Wextra -Wno-psabi -Isrc -Itests
-       -I/usr/include/eigen3)
-pids=()
-compile() {  # source object [extra flags]
-  g++ "${flags[@]}" "${@:3}" -c "$1" -o "$2" &
-  pids+=($!)
-}
-lib=()
-for f in src/raster/*.cpp; do
-  o=$obj/raster_$(basename "$f" .cpp).o
-  compile "$f" "$o" -ffp-contract=off
-  lib+=("$o")
-done
-for f in src/core/camera.cpp src/core/fileio.cpp; do
-  o=$obj/core_$(basename "$f" .cpp).o
-  compile "$f" "$o"
-  lib+=("$o")
-done
+source bench/raster_build_common.sh
+compile_rasterizer
 tests=()
 for f in tests/raster/raster_test.cpp tests/raster/preprocess_simd_test.cpp \
          tests/raster/projection_test.cpp tests/core/aligned_test.cpp; do
@@ -36,7 +20,7 @@ for f in tests/raster/raster_test.cpp tests/raster/preprocess_simd_test.cpp \
   tests+=("$o")
 done
 compile bench/raster_kernels.cpp "$obj/raster_kernels.o"
-for p in "${pids[@]}"; do wait "$p"; done
+wait_all
 # libgomp's and GoogleTest's static archives warn that dlopen / getaddrinfo would need the build
 # machine's glibc at run time (neither is called here): the linker's output is shown on failure.
 link() {
