@@ -60,6 +60,16 @@ template <class V4>
   for (size_t o = 0; o < bytes; o += 64) __builtin_prefetch(p + o);
 }
 
+// The render records of Gaussians [i, i + count) fetched for writing (one line each): the
+// projection writes each record as four 16-byte pieces, the first piece of every lane's record
+// before the second, and the hardware's own prefetching left those stores waiting for their
+// lines (in-process A/B: projection x0.92 in playback, x0.95 on the bench scene).
+[[gnu::always_inline]] inline void prefetch_records(RasterResultT<float>& out, size_t i,
+                                                    size_t count) {
+  const size_t n = std::min(out.radii.size(), i + count);
+  for (; i < n; ++i) __builtin_prefetch(&out.records[size_t(kRec) * i], 1);
+}
+
 // The SH coefficients of the block's Gaussians into lanes (lane l: Gaussian id(l); padding
 // lanes repeat the first), coef[f] = coefficient f = 3k + channel of every lane, 4 at a time by
 // 4 x 4 transposes (each Gaussian's 3K coefficients are contiguous); 3K must be a multiple of 4.
@@ -569,6 +579,7 @@ template <int CW>
   constexpr size_t kAhead = 4;
   for (size_t i0 = b; i0 < e; i0 += CW) {
     prefetch_sh(g, i0 + kAhead * CW, CW);
+    prefetch_records(out, i0 + kAhead * CW, CW);
     project_block<CW>(g, in, cam, s, i0, int(std::min<size_t>(CW, e - i0)), out);
   }
 }
