@@ -189,6 +189,26 @@ def _fmt(tag, s):
             f"mean {s['mean_ms']:8.3f} ms  ({fps:8.1f} FPS @median, n={s['n']})")
 
 
+def timed(fn, frames):
+    """Runs fn() frames times; per run the host wall time and the CUDA events' time (ms), and
+    the last run's result."""
+    import torch
+    wall, ev = [], []
+    out = None
+    for _ in range(frames):
+        ev0 = torch.cuda.Event(enable_timing=True)
+        ev1 = torch.cuda.Event(enable_timing=True)
+        torch.cuda.synchronize()
+        t = time.perf_counter()
+        ev0.record()
+        out = fn()
+        ev1.record()
+        torch.cuda.synchronize()
+        wall.append((time.perf_counter() - t) * 1e3)
+        ev.append(ev0.elapsed_time(ev1))
+    return wall, ev, out
+
+
 def main():
     if len(sys.argv) < 3:
         print(__doc__)
@@ -300,18 +320,8 @@ def main():
         print(f"[bench] image {img.shape[-2]}x{img.shape[-3]} (W x H), tile_size={meta.get('tile_size')}, "
               f"visible gaussians {n_vis}, tile intersections {n_isect}", flush=True)
 
-        fwd_wall, fwd_ev = [], []
-        for _ in range(frames):
-            ev0 = torch.cuda.Event(enable_timing=True)
-            ev1 = torch.cuda.Event(enable_timing=True)
-            torch.cuda.synchronize()
-            t = time.perf_counter()
-            ev0.record()
-            img, alpha, meta = render(means, quats, scales, opacities, sh)
-            ev1.record()
-            torch.cuda.synchronize()
-            fwd_wall.append((time.perf_counter() - t) * 1e3)
-            fwd_ev.append(ev0.elapsed_time(ev1))
+        fwd_wall, fwd_ev, (img, alpha, meta) = timed(
+            lambda: render(means, quats, scales, opacities, sh), frames)
         fwd_img = img[0].float().cpu().numpy()  # [H,W,3]
         fwd_alpha = alpha[0, ..., 0].float().cpu().numpy()
 
@@ -335,18 +345,7 @@ def main():
     for _ in range(warmup):
         loss = step()
     torch.cuda.synchronize()
-    bwd_wall, bwd_ev = [], []
-    for _ in range(frames):
-        ev0 = torch.cuda.Event(enable_timing=True)
-        ev1 = torch.cuda.Event(enable_timing=True)
-        torch.cuda.synchronize()
-        t = time.perf_counter()
-        ev0.record()
-        loss = step()
-        ev1.record()
-        torch.cuda.synchronize()
-        bwd_wall.append((time.perf_counter() - t) * 1e3)
-        bwd_ev.append(ev0.elapsed_time(ev1))
+    bwd_wall, bwd_ev, loss = timed(step, frames)
 
     res = dict(
         gsplat_version=gsplat.__version__, gsplat_commit=commit, gpu=gpu,
