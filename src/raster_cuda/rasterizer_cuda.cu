@@ -330,14 +330,24 @@ struct Images {
   uint32_t* n_last;  // W H: one past the last contributor's index in the tile's list
 };
 
+// The pixel this thread of a tile's block handles (row-major in the tile), whether it lies in
+// the image, and its centre.
+struct TilePixel {
+  int px, py;
+  bool inside;
+  float cx, cy;
+};
+__device__ __forceinline__ TilePixel tile_pixel(int tile, int tiles_x, int W, int H) {
+  const int px = (tile % tiles_x) * kTile + int(threadIdx.x) % kTile;
+  const int py = (tile / tiles_x) * kTile + int(threadIdx.x) / kTile;
+  return {px, py, px < W && py < H, float(px) + 0.5f, float(py) + 0.5f};
+}
+
 __global__ void __launch_bounds__(kBlock)
     composite_kernel(int W, int H, int tiles_x, const uint2* __restrict__ ranges,
                      const uint32_t* __restrict__ ids, Records rec, float3 bg, Images img) {
   const int tile = blockIdx.x;
-  const int tx = tile % tiles_x, ty = tile / tiles_x;
-  const int px = tx * kTile + threadIdx.x % kTile, py = ty * kTile + threadIdx.x / kTile;
-  const bool inside = px < W && py < H;
-  const float cxp = float(px) + 0.5f, cyp = float(py) + 0.5f;
+  const auto [px, py, inside, cxp, cyp] = tile_pixel(tile, tiles_x, W, H);
   const uint2 range = ranges[tile];
   __shared__ float4 s_xy_o[kBlock];
   __shared__ float4 s_conic[kBlock];
@@ -401,10 +411,7 @@ __global__ void __launch_bounds__(kBlock)
                     const float* __restrict__ dL_dcolor, const float* __restrict__ dL_dalpha,
                     float* __restrict__ gscreen) {
   const int tile = blockIdx.x;
-  const int tx = tile % tiles_x, ty = tile / tiles_x;
-  const int px = tx * kTile + threadIdx.x % kTile, py = ty * kTile + threadIdx.x / kTile;
-  const bool inside = px < W && py < H;
-  const float cxp = float(px) + 0.5f, cyp = float(py) + 0.5f;
+  const auto [px, py, inside, cxp, cyp] = tile_pixel(tile, tiles_x, W, H);
   const uint2 range = ranges[tile];
   __shared__ float4 s_xy_o[kBlock];
   __shared__ float4 s_conic[kBlock];
