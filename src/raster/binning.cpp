@@ -19,65 +19,102 @@ inline uint32_t depth_key(T z) {
   return u;  // z > 0: the float bits are monotone in z
 }
 
-// Stable LSD radix sort of (key, id) pairs by key, all keys in [lo, hi]: on key - lo, in as few
-// passes of at most 12 bits as the span needs (two for depths within a factor of two, three of
-// 11 bits at most), each over the threads (per-thread digit counts, offsets bucket-major then
-// thread so that equal keys keep their order, then each thread scatters its own range), a pass
-// whose digit is the same for every key skipped. `hist` is scratch. Only `ids` comes back
-// sorted: the last pass does not move the keys (nothing reads them after the sort).
+// Stable radix sort of (key, id) pairs by key, all keys in [lo, hi], in two stages: by the top 8
+// bits of key - lo first (256 buckets: each thread's write streams fit the core's first-level
+// cache, and Gaussians that lie near each other in id order, as an avatar's do, land in the same
+// few buckets), then each bucket by its remaining bits in LSD passes of at most 8 bits within the
+// bucket (a few thousand keys, which stay in cache), the buckets shared among the threads in
+// contiguous runs of about equal size. Ties keep their order. Only `ids` comes back sorted: the
+// last pass does not move the keys (nothing reads them after the sort). (Until the twenty-sixth
+// session: LSD passes of up to 12 bits over all the keys, docs/rasterizer.md.)
 void radix_sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& ids,
                 std::vector<uint32_t>& keys2, std::vector<uint32_t>& ids2,
                 std::vector<uint32_t>& hist, uint32_t lo, uint32_t hi) {
   const int span_bits = hi > lo ? 32 - __builtin_clz(hi - lo) : 0;
-  const int passes = span_bits <= 24 ? (span_bits + 11) / 12 : 3;
-  const int bits = passes > 0 ? (span_bits + passes - 1) / passes : 0;
-  const int buckets = 1 << bits;
-  const uint32_t mask = uint32_t(buckets - 1);
+  constexpr int kTop = 8, kBuckets = 1 << kTop;
+  // The bits below the top stage's, in passes of at most 8 (none when the span fits 8 bits).
+  const int shift = std::max(span_bits - kTop, 0);
+  const int passes = (shift + 7) / 8, bits = passes > 0 ? (shift + passes - 1) / passes : 0;
+  const uint32_t mask = (1u << bits) - 1;
   const size_t n = keys.size();
   keys2.resize(n);
   ids2.resize(n);
   const int maxthreads = n > 20000 ? omp_get_max_threads() : 1;
-  hist.resize(size_t(maxthreads) * buckets);
-  for (int pass = 0; pass < passes; ++pass) {
-    const int shift = pass * bits;
-    bool trivial = false;
+  hist.resize(size_t(maxthreads) * kBuckets + kBuckets + 1);
+  uint32_t* start = &hist[size_t(maxthreads) * kBuckets];  // bucket d: [start[d], start[d + 1])
+  // The local passes go keys2 -> keys -> keys2 ...: the ids end in `fin`.
+  std::vector<uint32_t>& fin = passes % 2 ? ids : ids2;
 #pragma omp parallel num_threads(maxthreads)
-    {
-      const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
-      const size_t b = n * tid / nt, e = n * (tid + 1) / nt;
-      uint32_t* h = &hist[size_t(tid) * buckets];
-      std::fill(h, h + buckets, 0u);
-      for (size_t i = b; i < e; ++i) ++h[((keys[i] - lo) >> shift) & mask];
+  {
+    const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
+    const size_t b = n * tid / nt, e = n * (tid + 1) / nt;
+    uint32_t* h = &hist[size_t(tid) * kBuckets];
+    std::fill(h, h + kBuckets, 0u);
+    for (size_t i = b; i < e; ++i) ++h[(keys[i] - lo) >> shift];
 #pragma omp barrier
 #pragma omp single
-      {
-        uint32_t sum = 0;
-        for (int d = 0; d < buckets; ++d) {
-          uint32_t total = 0;
-          for (int t = 0; t < nt; ++t) {
-            uint32_t& c = hist[size_t(t) * buckets + d];
-            const uint32_t tmp = c;
-            c = sum;
-            sum += tmp;
-            total += tmp;
-          }
-          if (total == n) trivial = true;
+    {
+      uint32_t sum = 0;
+      for (int d = 0; d < kBuckets; ++d) {
+        start[d] = sum;
+        for (int t = 0; t < nt; ++t) {
+          uint32_t& c = hist[size_t(t) * kBuckets + d];
+          const uint32_t tmp = c;
+          c = sum;
+          sum += tmp;
         }
       }
-      // The last pass moves the ids only: nothing reads the keys after the sort.
-      if (!trivial && pass + 1 < passes)
-        for (size_t i = b; i < e; ++i) {
-          const uint32_t d = h[((keys[i] - lo) >> shift) & mask]++;
-          keys2[d] = keys[i];
-          ids2[d] = ids[i];
-        }
-      else if (!trivial)
-        for (size_t i = b; i < e; ++i) ids2[h[((keys[i] - lo) >> shift) & mask]++] = ids[i];
+      start[kBuckets] = sum;
     }
-    if (trivial) continue;
-    keys.swap(keys2);
-    ids.swap(ids2);
+    for (size_t i = b; i < e; ++i) {
+      const uint32_t d = h[(keys[i] - lo) >> shift]++;
+      keys2[d] = keys[i];
+      ids2[d] = ids[i];
+    }
+#pragma omp barrier
+    // This thread's run of buckets: those that start in its share of the keys.
+    int d0 = 0, d1 = 0;
+    {
+      const uint32_t s0 = uint32_t(n * tid / nt), s1 = uint32_t(n * (tid + 1) / nt);
+      while (d0 < kBuckets && start[d0] < s0) ++d0;
+      d1 = d0;
+      while (d1 < kBuckets && start[d1] < s1) ++d1;
+      if (tid == nt - 1) d1 = kBuckets;
+    }
+    uint32_t lh[256];
+    for (int d = d0; d < d1; ++d) {
+      const uint32_t s = start[d], t = start[d + 1];
+      if (t - s <= 1) {
+        if (t > s) fin[s] = ids2[s];
+        continue;
+      }
+      for (int pass = 0; pass < passes; ++pass) {
+        const int sh = pass * bits;
+        const bool from2 = pass % 2 == 0;  // keys2 -> keys on the first pass
+        const uint32_t* ks = from2 ? keys2.data() : keys.data();
+        const uint32_t* is = from2 ? ids2.data() : ids.data();
+        uint32_t* kd = from2 ? keys.data() : keys2.data();
+        uint32_t* id = from2 ? ids.data() : ids2.data();
+        std::fill(lh, lh + (1 << bits), 0u);
+        for (uint32_t i = s; i < t; ++i) ++lh[((ks[i] - lo) >> sh) & mask];
+        uint32_t sum = s;
+        for (int k = 0; k < (1 << bits); ++k) {
+          const uint32_t c = lh[k];
+          lh[k] = sum;
+          sum += c;
+        }
+        if (pass + 1 < passes)
+          for (uint32_t i = s; i < t; ++i) {
+            const uint32_t q = lh[((ks[i] - lo) >> sh) & mask]++;
+            kd[q] = ks[i];
+            id[q] = is[i];
+          }
+        else
+          for (uint32_t i = s; i < t; ++i) id[lh[((ks[i] - lo) >> sh) & mask]++] = is[i];
+      }
+    }
   }
+  if (&fin == &ids2) ids.swap(ids2);
 }
 
 }  // namespace
