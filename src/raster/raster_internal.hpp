@@ -114,6 +114,21 @@ uint32_t sign_bits8(const VI&) {
 }
 #endif
 
+// a * b + c lane by lane. In the AVX2 and AVX-512 kernels (8 float lanes, which run only where
+// the CPU has FMA: raster_avx2_available) one fused multiply-add, rounded once; elsewhere (the
+// SSE2 baseline, double) the product rounded, then the sum. The kernels' forward and backward
+// call it at the same places, so that each kernel's backward sees the alphas its forward saw.
+// (The builtin, not the intrinsic, which would need the FMA target in this generic function
+// itself; only code inlined into the AVX2 and AVX-512 kernels instantiates the fused case.)
+template <class V>
+[[gnu::always_inline]] inline V madd(const V& a, const V& b, const V& c) {
+#if defined(__x86_64__)
+  if constexpr (std::is_same_v<V, typename VecTypes<float, 8>::V>)
+    return __builtin_ia32_vfmaddps256(a, b, c);
+#endif
+  return a * b + c;
+}
+
 template <class T, int CW>
 struct Simd;
 template <int CW>
@@ -170,10 +185,10 @@ struct Simd<float, CW> {
     for (int g = 0; g < K; ++g) r2[g] = r[g] * r[g];
     for (int g = 0; g < K; ++g) r4[g] = r2[g] * r2[g];
     for (int g = 0; g < K; ++g) {
-      const V p01 = r[g] * 0.6931469440460205f + 1.0000001192092896f,
-              p23 = r[g] * 0.05550713092088699f + 0.24022120237350464f,
-              p45 = r[g] * 0.0013276472454890609f + 0.009675540961325169f;
-      p[g] = (p01 + r2[g] * p23) + r4[g] * p45;
+      const V p01 = madd(r[g], V{} + 0.6931469440460205f, V{} + 1.0000001192092896f),
+              p23 = madd(r[g], V{} + 0.05550713092088699f, V{} + 0.24022120237350464f),
+              p45 = madd(r[g], V{} + 0.0013276472454890609f, V{} + 0.009675540961325169f);
+      p[g] = madd(r4[g], p45, madd(r2[g], p23, p01));
     }
     for (int g = 0; g < K; ++g) {
       const I bits = ((I)y[g] << 23) + (127 << 23);
@@ -292,9 +307,9 @@ template <class T>
 // K Gaussians over K blocks (all given per Gaussian; cols, rows: the tile-local column and
 // row of each lane of the block, block_lanes): each lane's offset from its pixel's centre
 // (dx, dy) and the base-2 exponent pw (power_coeffs), from the Gaussian's tile-local centre
-// less half a pixel (mx, my). The one expression both tile kernels use, so that their
-// decisions (alpha >= 1/255, the clamp) agree bit for bit. Each step is done for all K before
-// the next, so that the K dependency chains overlap.
+// less half a pixel (mx, my). The one expression the forward's and the backward's tile kernels
+// use, so that their decisions (alpha >= 1/255, the clamp) agree bit for bit. Each step is done
+// for all K before the next, so that the K dependency chains overlap.
 template <int K, class V, class T>
 [[gnu::always_inline]] inline void block_power_group(const T* mx, const T* my, const T* ha,
                                                      const T* hb, const T* hc, const V* cols,
@@ -302,8 +317,8 @@ template <int K, class V, class T>
   for (int g = 0; g < K; ++g) dx[g] = mx[g] - cols[g];
   for (int g = 0; g < K; ++g) dy[g] = my[g] - rows[g];
   for (int g = 0; g < K; ++g) pw[g] = ha[g] * dx[g] * dx[g];
-  for (int g = 0; g < K; ++g) pw[g] = pw[g] + hc[g] * dy[g] * dy[g];
-  for (int g = 0; g < K; ++g) pw[g] = pw[g] + (hb[g] * dy[g]) * dx[g];
+  for (int g = 0; g < K; ++g) pw[g] = madd(hc[g] * dy[g], dy[g], pw[g]);
+  for (int g = 0; g < K; ++g) pw[g] = madd(hb[g] * dy[g], dx[g], pw[g]);
 }
 
 // A visible Gaussian's tiles (RasterResultT::tile_rects) as two words, tx0 | tx1 << 16 and

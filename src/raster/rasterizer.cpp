@@ -11,7 +11,8 @@ namespace ks {
 
 bool raster_avx2_available() {
 #if defined(__x86_64__) || defined(__i386__)
-  static const bool ok = __builtin_cpu_supports("avx2");
+  // (The AVX2 kernels use FMA too: every AVX2 CPU but a few early ones has it.)
+  static const bool ok = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
   return ok;
 #else
   return false;
@@ -21,7 +22,8 @@ bool raster_avx2_available() {
 bool raster_avx512_available() {
 #if defined(__x86_64__)
   static const bool ok = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
-                         __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl");
+                         __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl") &&
+                         __builtin_cpu_supports("fma");
   return ok;
 #else
   return false;
@@ -36,7 +38,7 @@ Isa choose_isa(const RasterSettings& s) {
       return Isa::kBaseline;
     case RasterKernel::kAvx2:
       if (!raster_avx2_available())
-        throw Error("rasterizer: the AVX2 kernel was asked for, but this CPU has no AVX2");
+        throw Error("rasterizer: the AVX2 kernel was asked for, but this CPU lacks AVX2 or FMA");
       return Isa::kAvx2;
     case RasterKernel::kAvx512:
       if (!raster_avx512_available())

@@ -25,9 +25,10 @@ constexpr int kTileSize = 16;
 // The CPU tile kernels: 4-pixel SSE2 chunks (the portable baseline), blocks of 4 x 2 pixels
 // with AVX2, or the same blocks with AVX-512VL (the AVX2 kernels' code with 32 vector registers
 // and mask registers). kAuto takes the best the CPU has (KS_RASTER_NO_AVX512=1 stops it at AVX2,
-// KS_RASTER_NO_AVX2=1 at the baseline). All give the same images; the AVX2 and AVX-512 kernels
-// the same gradients, the baseline's agree up to the order of their float sums. The double
-// instantiation has one kernel (this setting is ignored there).
+// KS_RASTER_NO_AVX2=1 at the baseline). The AVX2 and AVX-512 kernels give the same images and
+// gradients, bit for bit; they fuse multiply-adds (the CPU must have FMA too), so the baseline's
+// agree with theirs up to rounding (and the order of float sums). The double instantiation has
+// one kernel (this setting is ignored there).
 enum class RasterKernel { kAuto, kBaseline, kAvx2, kAvx512 };
 
 struct RasterSettings {

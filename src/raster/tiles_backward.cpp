@@ -195,7 +195,7 @@ template <int BW, int BH, class T, class Res, class Img>
         // The forward's expression: the same skip decisions.
         block_power_group<K>(gmx, gmy, gha, gb, ghc, cols, rows, dx, dy, pw);
         SV::template exp2_group<K>(pw, Gv);
-        V t_r[K], t_g[K], t_bl[K], t_o[K], t_u[K], t_v[K], t_a[K], t_c[K], t_b[K];
+        V w[K], d_r[K], d_g[K], d_bl[K], t_o[K], t_u[K], t_v[K];
         for (int g = 0; g < K; ++g) {
           const int p0 = bl[g] * N;
           const V og = o * Gv[g];
@@ -208,18 +208,16 @@ template <int BW, int BH, class T, class Res, class Img>
           const V r0 = vload<V>(R0 + p0), r1 = vload<V>(R1 + p0), r2 = vload<V>(R2 + p0);
           const V d0 = vload<V>(D0 + p0), d1 = vload<V>(D1 + p0), d2 = vload<V>(D2 + p0);
           const V e0 = cr - r0, e1 = cg - r1, e2 = cb - r2;
-          const V dLdal = Tj * (e0 * d0 + e1 * d1 + e2 * d2) + vload<V>(DT + p0) / om;
+          const V dLdal = madd(Tj, madd(e2, d2, madd(e1, d1, e0 * d0)), vload<V>(DT + p0) / om);
           // Alpha where the pixel took the Gaussian, 0 elsewhere (there the colour behind stays
           // and the weight is 0).
           const V alo = ok ? al : V{};
-          const V w = alo * Tj;
-          t_r[g] = w * d0;
-          t_g[g] = w * d1;
-          t_bl[g] = w * d2;
+          w[g] = alo * Tj;
+          d_r[g] = d0, d_g[g] = d1, d_bl[g] = d2;
           // The colour behind the Gaussian's predecessor: al c + (1 - al) r = r + al (c - r).
-          vstore(R0 + p0, r0 + alo * e0);
-          vstore(R1 + p0, r1 + alo * e1);
-          vstore(R2 + p0, r2 + alo * e2);
+          vstore(R0 + p0, madd(alo, e0, r0));
+          vstore(R1 + p0, madd(alo, e1, r1));
+          vstore(R2 + p0, madd(alo, e2, r2));
           vstore(Tt + p0, ok ? Tj : Tc);
           const V dLdog = (ok & (og <= T(0.99))) ? dLdal : V{};
           t_o[g] = Gv[g] * dLdog;
@@ -228,13 +226,14 @@ template <int BW, int BH, class T, class Res, class Img>
           const V dLdpw = og * dLdog;
           t_u[g] = dLdpw * dx[g];
           t_v[g] = dLdpw * dy[g];
-          t_a[g] = t_u[g] * dx[g];
-          t_c[g] = t_v[g] * dy[g];
-          t_b[g] = t_u[g] * dy[g];
         }
+        // (The products w d and t_u dx, ... fused into their sums.)
         for (int g = 0; g < K; ++g) {
-          s_r += t_r[g], s_g += t_g[g], s_bl += t_bl[g], s_o += t_o[g];
-          s_u += t_u[g], s_v += t_v[g], s_a += t_a[g], s_c += t_c[g], s_b += t_b[g];
+          s_r = madd(w[g], d_r[g], s_r), s_g = madd(w[g], d_g[g], s_g);
+          s_bl = madd(w[g], d_bl[g], s_bl), s_o += t_o[g];
+          s_u += t_u[g], s_v += t_v[g];
+          s_a = madd(t_u[g], dx[g], s_a), s_c = madd(t_v[g], dy[g], s_c);
+          s_b = madd(t_u[g], dy[g], s_b);
         }
       };
       int i = 0;
@@ -272,18 +271,16 @@ template <int BW, int BH, class T, class Res, class Img>
 
 // The AVX2 kernel in the AVX2 forward's blocks of 4 x 2 pixels.
 template <class Res, class Img>
-__attribute__((target("avx2"), flatten)) void backward_tile_avx2(const Res& fwd, const Img& dLdc,
-                                                                 const Img& dLda, bool has_da,
-                                                                 const float* bg, float* acc,
-                                                                 int tile, int tiles_x, int W,
-                                                                 int H) {
+__attribute__((target("avx2,fma"), flatten)) void backward_tile_avx2(
+    const Res& fwd, const Img& dLdc, const Img& dLda, bool has_da, const float* bg, float* acc,
+    int tile, int tiles_x, int W, int H) {
   backward_tile<4, 2, float>(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);
 }
 
 // The AVX-512 kernel: the same code compiled with AVX-512VL (32 vector registers, comparisons
 // into mask registers), as the forward's; the same gradients bit for bit.
 template <class Res, class Img>
-__attribute__((target("avx2,avx512f,avx512dq,avx512bw,avx512vl"), flatten)) void
+__attribute__((target("avx2,fma,avx512f,avx512dq,avx512bw,avx512vl"), flatten)) void
 backward_tile_avx512(const Res& fwd, const Img& dLdc, const Img& dLda, bool has_da, const float* bg,
                      float* acc, int tile, int tiles_x, int W, int H) {
   backward_tile<4, 2, float>(fwd, dLdc, dLda, has_da, bg, acc, tile, tiles_x, W, H);

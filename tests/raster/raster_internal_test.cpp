@@ -1,5 +1,5 @@
 // The tile kernels' shared numeric pieces (src/raster/raster_internal.hpp): the base-2
-// exponential, the exponent from a conic, the minimum, and an entry's blocks.
+// exponential, the exponent from a conic, the minimum, the multiply-add, and an entry's blocks.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,6 +9,7 @@
 #include <random>
 
 #include "raster/raster_internal.hpp"
+#include "raster/rasterizer.hpp"
 
 namespace ks::raster {
 namespace {
@@ -97,6 +98,42 @@ void expect_entry_blocks_match_the_box() {
           for (int k = 10; k < 14; ++k) drec[k] = rec[k];
           EXPECT_EQ((entry_blocks<BW, BH>(drec, ox, oy)), (box_blocks<BW, BH>(q0, q1, r0, r1)));
         }
+}
+
+using V8 = VecTypes<float, 8>::V;
+// madd on 8 lanes as the AVX2 and AVX-512 kernels compile it (inlined into a function with the
+// FMA target; the lanes through memory, since an AVX vector argument changes the calling
+// convention between this file's baseline code and that function).
+__attribute__((target("avx2,fma"), noinline)) void madd8(const float* a, const float* b,
+                                                         const float* c, float* out) {
+  V8 va, vb, vc;
+  std::memcpy(&va, a, sizeof va), std::memcpy(&vb, b, sizeof vb), std::memcpy(&vc, c, sizeof vc);
+  const V8 r = madd(va, vb, vc);
+  std::memcpy(out, &r, sizeof r);
+}
+
+// One rounding on the wider kernels' 8 lanes (std::fma), two on the baseline's 4 (the product,
+// then the sum), lane for lane; operands where the two differ.
+TEST(RasterInternal, MaddFusesOnEightLanesOnly) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-2.f, 2.f);
+  int differ = 0;
+  for (int trial = 0; trial < 1000; ++trial) {
+    float a[8], b[8], c[8], r8[8];
+    for (int l = 0; l < 8; ++l) a[l] = u(rng), b[l] = u(rng), c[l] = u(rng);
+    V a4, b4, c4;
+    for (int l = 0; l < 4; ++l) a4[l] = a[l], b4[l] = b[l], c4[l] = c[l];
+    const V r4 = madd(a4, b4, c4);
+    for (int l = 0; l < 4; ++l) {
+      const float p = a4[l] * b4[l];
+      EXPECT_EQ(r4[l], p + c4[l]);
+      differ += r4[l] != std::fma(a4[l], b4[l], c4[l]);
+    }
+    if (!raster_avx2_available()) continue;
+    madd8(a, b, c, r8);
+    for (int l = 0; l < 8; ++l) EXPECT_EQ(r8[l], std::fma(a[l], b[l], c[l]));
+  }
+  EXPECT_GT(differ, 0);
 }
 
 TEST(RasterInternal, EntryBlocksAreTheBoxsBlocks) {

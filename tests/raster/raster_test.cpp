@@ -209,11 +209,12 @@ TEST(Raster, PixelCentreConvention) {
   EXPECT_EQ(best / 16, 9);
 }
 
-// The baseline (SSE2) and AVX2 tile kernels in one process: the same images, bit for bit, and the
-// same gradients up to the order of their float sums.
-// The wider kernels against the baseline on scenes with the 0.99 clamp, early termination,
-// tiny and large Gaussians, and an image whose edges cut tiles: the same images bit for bit,
-// the same gradients up to the order of float sums.
+// The wider kernels (AVX2, AVX-512) against the baseline (SSE2) in one process, on scenes with the
+// 0.99 clamp, early termination, tiny and large Gaussians, and an image whose edges cut tiles:
+// the same images and gradients up to rounding (the wider kernels fuse multiply-adds, rounded
+// once where the baseline rounds the product and then the sum, and sum in another order). A
+// pixel whose last contributor differs (an alpha or a transmittance that a rounding moves across
+// its threshold) may differ by one Gaussian's share: at most a few such pixels.
 void expect_kernel_agrees(RasterKernel kernel, unsigned seed, double scale_min, double scale_max,
                           int w, int h) {
   SceneOptions o;
@@ -237,11 +238,20 @@ void expect_kernel_agrees(RasterKernel kernel, unsigned seed, double scale_min, 
     rasterize_forward(g, cam, s, r[k]);
     rasterize_backward(g, cam, s, r[k], dc, da, gr[k]);
   }
-  EXPECT_EQ(r[0].color.data, r[1].color.data);
-  EXPECT_EQ(r[0].alpha.data, r[1].alpha.data);
-  EXPECT_EQ(r[0].depth.data, r[1].depth.data);
-  EXPECT_EQ(r[0].n_contrib, r[1].n_contrib);
-  EXPECT_EQ(r[0].final_T, r[1].final_T);
+  const size_t npix = size_t(w) * h;
+  size_t moved = 0;
+  for (size_t p = 0; p < npix; ++p) {
+    if (r[0].n_contrib[p] != r[1].n_contrib[p]) {
+      ++moved;
+      continue;
+    }
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(r[0].color.data[3 * p + c], r[1].color.data[3 * p + c], 1e-5f) << p;
+    EXPECT_NEAR(r[0].alpha.data[p], r[1].alpha.data[p], 1e-5f) << p;
+    EXPECT_NEAR(r[0].final_T[p], r[1].final_T[p], 1e-5f) << p;
+    EXPECT_NEAR(r[0].depth.data[p], r[1].depth.data[p], 1e-5f * (1 + r[0].depth.data[p])) << p;
+  }
+  EXPECT_LE(moved, npix / 1000);
   auto close = [](const std::vector<float>& a, const std::vector<float>& b, const char* name) {
     ASSERT_EQ(a.size(), b.size()) << name;
     float scale = 0;
@@ -430,7 +440,7 @@ TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
 }
 
 TEST(Raster, BaselineAndAvx2KernelsAgree) {
-  if (!raster_avx2_available()) GTEST_SKIP() << "this CPU has no AVX2";
+  if (!raster_avx2_available()) GTEST_SKIP() << "this CPU has no AVX2 and FMA";
   expect_kernel_agrees(RasterKernel::kAvx2, 21, 0.02, 0.08, 83, 61);
   expect_kernel_agrees(RasterKernel::kAvx2, 22, 0.002, 0.3, 97, 130);
 }
