@@ -5,7 +5,8 @@
 # and CUDA's static runtime. It builds
 #   OUT/kinesplat          the command line with its `bench` command alone (the same sources as
 #                          the full build's: kinesplat bench raster --device cuda ...)
-#   OUT/raster_cuda_tests  tests/raster_cuda/ and the CPU rasterizer's tests
+#   OUT/raster_cuda_tests  the CUDA rasterizer's and posing's tests (tests/raster_cuda/) and the
+#                          CPU rasterizer's
 # The binaries load the machine's own libc and CUDA driver; the C++ runtime is linked in.
 #   bench/raster_cuda_build.sh [out-dir=build-cuda] [cuda-architectures=90]
 set -euo pipefail
@@ -19,10 +20,13 @@ gencode=()
 for a in ${archs//,/ }; do gencode+=(-gencode "arch=compute_$a,code=sm_$a"); done
 source bench/raster_build_common.sh
 compile_rasterizer
-"$nvcc" -std=c++17 -O3 -DNDEBUG "${gencode[@]}" -Isrc -isystem /usr/include/eigen3 \
-  -Xcompiler -Wall,-Wextra -c src/raster_cuda/rasterizer_cuda.cu -o "$obj/rasterizer_cuda.o" &
-pids+=($!)
-lib+=("$obj/rasterizer_cuda.o")
+for f in src/raster_cuda/*.cu; do
+  o=$obj/$(basename "$f" .cu).o
+  "$nvcc" -std=c++17 -O3 -DNDEBUG "${gencode[@]}" -Isrc -isystem /usr/include/eigen3 \
+    -Xcompiler -Wall,-Wextra -c "$f" -o "$o" &
+  pids+=($!)
+  lib+=("$o")
+done
 cli=()
 for f in src/cli/main.cpp src/cli/bench_cmd.cpp; do
   o=$obj/cli_$(basename "$f" .cpp).o
@@ -30,7 +34,13 @@ for f in src/cli/main.cpp src/cli/bench_cmd.cpp; do
   cli+=("$o")
 done
 tests=()
-for f in tests/raster_cuda/rasterizer_cuda_test.cpp tests/raster/raster_test.cpp; do
+for f in src/body/lbs.cpp; do
+  o=$obj/body_$(basename "$f" .cpp).o
+  compile "$f" "$o"
+  lib+=("$o")
+done
+for f in tests/raster_cuda/rasterizer_cuda_test.cpp tests/raster_cuda/lbs_cuda_test.cpp \
+  tests/raster/raster_test.cpp; do
   o=$obj/test_$(basename "$f" .cpp).o
   compile "$f" "$o" -DKS_CLI_PATH=\"none\" -DKS_SOURCE_DIR=\"none\"
   tests+=("$o")

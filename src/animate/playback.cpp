@@ -71,7 +71,7 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
   BackfaceCull cull;
   cull.normals = &normals;
   cull.threshold = o.backface_cull;
-  Gaussians g;  // the posed Gaussians, for the .ply files or the GPU
+  Gaussians g;  // the posed Gaussians, for the .ply files
   PosedRenderer renderer(avatar);
   std::unique_ptr<cuda::RasterizerCuda> gpu;
   if (o.cuda) gpu = std::make_unique<cuda::RasterizerCuda>();  // throws, saying why, without one
@@ -85,13 +85,16 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
     // Posed as the projection reads them (the same image as posing first), unless the posed
     // Gaussians are written too: then posed once and rendered.
     if (gpu) {
-      pose_avatar(avatar, motion.frames[f], g, rep.culled ? &cull : nullptr, f > 0);
+      // Posed on the device: the canonical Gaussians and skin go once, then each frame's joint
+      // transforms (and pose correctives' offsets, where the avatar has them).
       if (f == 0)
-        gpu->upload(g);
-      else
-        gpu->upload_posed(g);  // scales and SH as posed from the same avatar
+        gpu->upload_skinned(avatar.gaussians, avatar.skin_joints, avatar.skin_weights, normals);
+      const AvatarPoseInputs in = avatar_pose_inputs(avatar, motion.frames[f]);
+      gpu->pose(in.transforms, in.offsets.size() > 0 ? in.offsets.data() : nullptr,
+                rep.culled ? &cull : nullptr);
       gpu->forward(cams[f], rs);
-      gpu->download(rr);
+      gpu->download(rr, false);  // the frame's images only
+      if (o.ply) gpu->download_gaussians(g);
     } else if (o.ply) {
       pose_avatar(avatar, motion.frames[f], g, nullptr, f > 0);
       rasterize_forward(g, cams[f], rs, rr);

@@ -17,8 +17,10 @@ struct PlaybackOptions {
   // Skip Gaussians whose posed normal faces away from the camera by more than this cosine (1: off).
   float backface_cull = 1.f;
   float background[3] = {1.f, 1.f, 1.f};
-  // Rasterize on an NVIDIA GPU (raster_cuda/; a build with KS_CUDA): each frame posed on the CPU
-  // (pose_avatar), its means, rotations and opacities uploaded, the image downloaded.
+  // Pose and rasterize on an NVIDIA GPU (raster_cuda/; a build with KS_CUDA): the canonical
+  // Gaussians and their skin uploaded once; each frame the skeleton's transforms computed on the
+  // CPU (avatar_pose_inputs) and uploaded, the Gaussians skinned on the device
+  // (RasterizerCuda::pose), the image downloaded.
   bool cuda = false;
   bool progress = true;
 };

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "raster_cuda/lbs_cuda.cuh"
 #include "raster_cuda/rasterizer_cuda.hpp"
 
 namespace ks::cuda {
@@ -676,6 +677,13 @@ struct RasterizerCuda::State {
   DeviceArray<uint32_t> n_last;
   DeviceArray<float> dL_dcolor, dL_dalpha, gscreen;
   DeviceArray<float> g_means, g_ls, g_q, g_logit, g_sh, g_m2d;
+  // Posing on the device (upload_skinned / pose): the canonical means, rotations, opacity
+  // logits, skin and normals, and one frame's transforms and offsets.
+  DeviceArray<float> c_means, c_quats, c_logits, skin_w, normals, tf, pose_off;
+  DeviceArray<int> skin_j;
+  std::vector<float> tf_host;
+  int skin_K = 0, skin_max_joint = -1;
+  bool skinned = false;
   // The last forward.
   Cam cam{};
   RasterSettings settings;
@@ -756,6 +764,7 @@ void RasterizerCuda::upload(const Gaussians& g) {
   s.logits.upload(g.opacity_logits, s.stream);
   s.sh.upload(g.sh, s.stream);
   s.have_forward = s.have_backward = false;
+  s.skinned = false;
 }
 
 void RasterizerCuda::upload_posed(const Gaussians& g) {
@@ -768,6 +777,87 @@ void RasterizerCuda::upload_posed(const Gaussians& g) {
   s.quats.upload(g.quats, s.stream);
   s.logits.upload(g.opacity_logits, s.stream);
   s.have_forward = s.have_backward = false;
+}
+
+void RasterizerCuda::upload_skinned(const Gaussians& c, const std::vector<int>& skin_joints,
+                                    const std::vector<float>& skin_weights,
+                                    const std::vector<float>& normals) {
+  const size_t N = c.size();
+  const size_t K = N > 0 ? skin_joints.size() / N : 0;
+  if (N > 0 && (K < 1 || skin_joints.size() != K * N || skin_weights.size() != K * N))
+    throw Error("CUDA posing: skin joints / weights must be K per Gaussian (" +
+                std::to_string(skin_joints.size()) + " joints, " +
+                std::to_string(skin_weights.size()) + " weights for " + std::to_string(N) +
+                " Gaussians)");
+  if (!normals.empty() && normals.size() != 3 * N)
+    throw Error("CUDA posing: " + std::to_string(normals.size()) + " normal values for " +
+                std::to_string(N) + " Gaussians (3 each, or none)");
+  int largest = -1;
+  for (const int j : skin_joints) {
+    if (j < 0) throw Error("CUDA posing: negative skin joint " + std::to_string(j));
+    largest = std::max(largest, j);
+  }
+  upload(c);  // checks the arrays; scales and SH stay as they are
+  State& s = *st_;
+  s.c_means.upload(c.means, s.stream);
+  s.c_quats.upload(c.quats, s.stream);
+  s.c_logits.upload(c.opacity_logits, s.stream);
+  s.skin_j.upload(skin_joints, s.stream);
+  s.skin_w.upload(skin_weights, s.stream);
+  s.normals.upload(normals, s.stream);
+  s.skin_K = int(K);
+  s.skin_max_joint = largest;
+  s.skinned = true;
+}
+
+void RasterizerCuda::pose(const std::vector<Eigen::Matrix4d>& transforms, const float* pose_offsets,
+                          const BackfaceCull* cull) {
+  State& s = *st_;
+  if (!s.skinned) throw Error("CUDA posing: pose before upload_skinned");
+  if (int(transforms.size()) <= s.skin_max_joint)
+    throw Error("CUDA posing: skin joint " + std::to_string(s.skin_max_joint) + " out of range (" +
+                std::to_string(transforms.size()) + " transforms)");
+  if (cull && !(cull->threshold >= 0.f && cull->threshold <= 1.f))
+    throw Error("CUDA posing: the back-face cull threshold must be in [0, 1]");
+  const size_t N = size_t(s.N);
+  s.tf_host.resize(12 * transforms.size());
+  for (size_t j = 0; j < transforms.size(); ++j)
+    for (int r = 0; r < 3; ++r)
+      for (int q = 0; q < 4; ++q)
+        s.tf_host[12 * j + size_t(4 * r + q)] = float(transforms[j](r, q));
+  s.tf.upload(s.tf_host, s.stream);
+  LbsArgs a;
+  if (pose_offsets && N > 0) {
+    s.pose_off.resize(3 * N);
+    check(cudaMemcpyAsync(s.pose_off.p, pose_offsets, 3 * N * sizeof(float), cudaMemcpyHostToDevice,
+                          s.stream),
+          "copy of the pose offsets");
+    a.offsets = s.pose_off.p;
+  }
+  if (cull && s.normals.n == 3 * N && cull->threshold < 1.f) {
+    a.normals = s.normals.p;
+    for (int k = 0; k < 3; ++k) a.eye[k] = float(cull->eye[k]);
+    a.threshold = cull->threshold;
+  }
+  a.N = s.N;
+  a.K = s.skin_K;
+  a.means = s.c_means.p, a.quats = s.c_quats.p, a.logits = s.c_logits.p;
+  a.joints = s.skin_j.p, a.weights = s.skin_w.p, a.transforms = s.tf.p;
+  a.culled_logit = kCulledOpacityLogit;
+  a.out_means = s.means.p, a.out_quats = s.quats.p, a.out_logits = s.logits.p;
+  check(launch_lbs(a, s.stream), "posing");
+  s.have_forward = s.have_backward = false;
+}
+
+void RasterizerCuda::download_gaussians(Gaussians& out) const {
+  State& s = *st_;
+  out.sh_degree = s.deg;
+  s.means.download(out.means, s.stream);
+  s.log_scales.download(out.log_scales, s.stream);
+  s.quats.download(out.quats, s.stream);
+  s.logits.download(out.opacity_logits, s.stream);
+  s.sh.download(out.sh, s.stream);
+  check(cudaStreamSynchronize(s.stream), "download of the Gaussians");
 }
 
 void RasterizerCuda::forward(const Camera& camera, const RasterSettings& settings) {
@@ -856,19 +946,32 @@ void RasterizerCuda::forward(const Camera& camera, const RasterSettings& setting
   s.have_backward = false;
 }
 
-void RasterizerCuda::download(RasterResult& out) const {
+void RasterizerCuda::download(RasterResult& out, bool per_gaussian) const {
   State& s = *st_;
   if (!s.have_forward) throw Error("CUDA rasterizer: download before any forward");
   const int W = s.cam.W, H = s.cam.H;
   out.image_only = !s.full_forward;
-  out.color = Image(W, H, 3);
-  out.alpha = Image(W, H, 1);
-  out.depth = s.full_forward ? Image(W, H, 1) : Image();
+  // The images' buffers are reused when their size is right (playback's frames): every value
+  // is overwritten by the copy.
+  auto shape = [&](Image& im, int channels) {
+    if (im.width != W || im.height != H || im.channels != channels) im = Image(W, H, channels);
+  };
+  shape(out.color, 3);
+  shape(out.alpha, 1);
+  if (s.full_forward)
+    shape(out.depth, 1);
+  else
+    out.depth = Image();
   s.color.download(out.color.data, s.stream);
   s.alpha.download(out.alpha.data, s.stream);
   if (s.full_forward) s.depth.download(out.depth.data, s.stream);
-  s.radii.download(out.radii, s.stream);
-  s.depths.download(out.depths, s.stream);
+  if (per_gaussian) {
+    s.radii.download(out.radii, s.stream);
+    s.depths.download(out.depths, s.stream);
+  } else {
+    out.radii.clear();
+    out.depths.clear();
+  }
   check(cudaStreamSynchronize(s.stream), "download");
 }
 

@@ -10,9 +10,13 @@
 // The Gaussians and every intermediate stay on the device between calls: upload once, run the
 // forward / backward as often as needed, and download only what the caller reads (as training
 // and playback on a GPU would). docs/rasterizer_cuda.md gives the kernels and their figures.
+#include <Eigen/Core>
+#include <Eigen/StdVector>
 #include <memory>
 #include <string>
+#include <vector>
 
+#include "body/lbs.hpp"
 #include "core/camera.hpp"
 #include "core/image.hpp"
 #include "gaussians/gaussians.hpp"
@@ -42,14 +46,32 @@ class RasterizerCuda {
   // scales and SH stay as the last upload's, which must have had the same count and degree
   // (ks::Error otherwise).
   void upload_posed(const Gaussians& g);
+  // Posing on the device (playback): the canonical Gaussians (their scales and SH go straight
+  // to the rasterizer's arrays: posing keeps them), their top-k skin (K = skin_joints.size() / N
+  // joints and weights each, as lbs_forward takes them) and, for back-face culling, their
+  // anchors' canonical unit normals (3N, or empty: no culling), copied once. ks::Error on
+  // inconsistent sizes, a negative joint or an SH degree outside 0..3.
+  void upload_skinned(const Gaussians& canonical, const std::vector<int>& skin_joints,
+                      const std::vector<float>& skin_weights, const std::vector<float>& normals);
+  // Poses the Gaussians of the last upload_skinned on the device as lbs_forward does on the CPU
+  // (body/lbs.hpp; single precision, so equal up to rounding): the skinning transforms (one a
+  // joint, more than the largest skin joint), the pose correctives' offsets (3N, or nullptr) and
+  // back-face culling (nullptr: none; the uploaded normals are used, cull->normals is not read;
+  // the threshold must be in [0, 1]). Only the transforms (48 bytes a joint) and the offsets
+  // travel. The next forward renders the posed Gaussians.
+  void pose(const std::vector<Eigen::Matrix4d>& transforms, const float* pose_offsets,
+            const BackfaceCull* cull);
+  // The Gaussians the device holds now (those of the last upload, upload_posed or pose).
+  void download_gaussians(Gaussians& out) const;
   // The forward pass on the device, asynchronously (nothing comes back to the host; the call
   // returns once the kernels are queued, after one small copy: the number of tile entries).
   // settings.kernel is ignored; settings.image_only skips the expected depth and the
   // backward's per-pixel state, as on the CPU.
   void forward(const Camera& cam, const RasterSettings& settings);
-  // The last forward's images (colour, alpha, and depth unless image_only) and per-Gaussian
-  // radii and depths into `out` (its other fields are left empty).
-  void download(RasterResult& out) const;
+  // The last forward's images (colour, alpha, and depth unless image_only) and, with
+  // per_gaussian, the radii and depths into `out` (its other fields are left alone; without
+  // per_gaussian radii and depths are left empty: playback needs the images only).
+  void download(RasterResult& out, bool per_gaussian = true) const;
   // The backward pass of the last full forward, given dL/dcolour (W x H x 3) and dL/dalpha
   // (W x H x 1, or empty): the gradients stay on the device until download_grads.
   void backward(const Image& dL_dcolor, const Image& dL_dalpha);

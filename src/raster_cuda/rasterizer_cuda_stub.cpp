@@ -35,10 +35,20 @@ void RasterizerCuda::upload(const Gaussians&) {
 void RasterizerCuda::upload_posed(const Gaussians&) {
   no_cuda();
 }
+void RasterizerCuda::upload_skinned(const Gaussians&, const std::vector<int>&,
+                                    const std::vector<float>&, const std::vector<float>&) {
+  no_cuda();
+}
+void RasterizerCuda::pose(const std::vector<Eigen::Matrix4d>&, const float*, const BackfaceCull*) {
+  no_cuda();
+}
+void RasterizerCuda::download_gaussians(Gaussians&) const {
+  no_cuda();
+}
 void RasterizerCuda::forward(const Camera&, const RasterSettings&) {
   no_cuda();
 }
-void RasterizerCuda::download(RasterResult&) const {
+void RasterizerCuda::download(RasterResult&, bool) const {
   no_cuda();
 }
 void RasterizerCuda::backward(const Image&, const Image&) {

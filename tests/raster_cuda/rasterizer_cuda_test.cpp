@@ -214,6 +214,12 @@ TEST(RasterCuda, PosedUploadKeepsScalesAndColours) {
   b.download(rb);
   EXPECT_EQ(ra.color.data, rb.color.data);
   EXPECT_EQ(ra.alpha.data, rb.alpha.data);
+  EXPECT_EQ(ra.radii.size(), g.size());
+  // The images alone, into buffers of the right size already (playback's frames).
+  b.download(rb, false);
+  EXPECT_EQ(ra.color.data, rb.color.data);
+  EXPECT_EQ(ra.alpha.data, rb.alpha.data);
+  EXPECT_TRUE(rb.radii.empty() && rb.depths.empty());
   Gaussians fewer = make_avatar_cloud(4000, 2);
   EXPECT_THROW(a.upload_posed(fewer), Error);
 }
