@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <string>
 
@@ -43,18 +44,28 @@ template <int CW>
   // M = sum_k w_k A_{j_k}[0:3, :] (zero weights add nothing), each lane's rows as 4-float pieces
   // (a transform's 12 floats are contiguous), then turned into lanes.
   V4 rows[3][CW], qrows[CW];
+  typedef float V8 __attribute__((vector_size(32)));
   for (int l = 0; l < CW; ++l) {
     const size_t i = at(l);
-    V4 r0{}, r1{}, r2{};
-    for (int q = 0; q < job.K; ++q) {
-      const size_t k = size_t(job.K) * i + size_t(q);
+    V8 r01{};
+    V4 r2{};
+    const auto add = [&](size_t k) {
       const float w = job.weights[k];
       const float* T = job.tf + 12 * size_t(job.joints[k]);
-      r0 += w * L::load4(T);
-      r1 += w * L::load4(T + 4);
+      V8 t01;
+      std::memcpy(&t01, T, sizeof t01);
+      r01 += w * t01;
       r2 += w * L::load4(T + 8);
+    };
+    const size_t k0 = size_t(job.K) * i;
+    if (job.K == 4) {
+      add(k0), add(k0 + 1), add(k0 + 2), add(k0 + 3);
+    } else {
+      for (int q = 0; q < job.K; ++q) add(k0 + size_t(q));
     }
-    rows[0][l] = r0, rows[1][l] = r1, rows[2][l] = r2;
+    rows[0][l] = __builtin_shufflevector(r01, r01, 0, 1, 2, 3);
+    rows[1][l] = __builtin_shufflevector(r01, r01, 4, 5, 6, 7);
+    rows[2][l] = r2;
     qrows[l] = L::load4(&job.c->quats[4 * i]);
   }
   V M[12], qc[4];
@@ -103,12 +114,32 @@ template <int CW>
     culled = (d > 0.f) & (d * d > job.thr * job.thr * (nx * nx + ny * ny + nz * nz) *
                                       (vx * vx + vy * vy + vz * vz));
   }
+  // Lanes back to rows: a Gaussian's mean and rotation by one 4-float store each (a mean's
+  // fourth float is the next Gaussian's first, which overwrites it; the last mean by its three).
+  const V mp[4] = {m[0], m[1], m[2], V{}};
+  V4 mrow[CW], qrow[CW];
+  L::untranspose4(mp, mrow);
+  L::untranspose4(qp, qrow);
+  const size_t o0 = i0 - job.first;
   for (int l = 0; l < n; ++l) {
-    const size_t i = i0 + size_t(l), o = i - job.first;
-    for (int k = 0; k < 3; ++k) job.means[3 * o + k] = m[k][l];
-    for (int k = 0; k < 4; ++k) job.quats[4 * o + k] = qp[k][l];
-    job.opacity[o] = culled[l] ? kCulledOpacityLogit : job.c->opacity_logits[i];
-    if (job.cache) {
+    const size_t o = o0 + size_t(l);
+    if (l + 1 < n)
+      std::memcpy(&job.means[3 * o], &mrow[l], sizeof(V4));
+    else
+      for (int k = 0; k < 3; ++k) job.means[3 * o + k] = mrow[l][k];
+    std::memcpy(&job.quats[4 * o], &qrow[l], sizeof(V4));
+  }
+  if (n == CW) {
+    const V op = L::sel(culled, L::splat(kCulledOpacityLogit), L::load(&job.c->opacity_logits[i0]));
+    std::memcpy(&job.opacity[o0], &op, sizeof(V));
+  } else {
+    for (int l = 0; l < n; ++l)
+      job.opacity[o0 + size_t(l)] =
+          culled[l] ? kCulledOpacityLogit : job.c->opacity_logits[i0 + size_t(l)];
+  }
+  if (job.cache) {
+    for (int l = 0; l < n; ++l) {
+      const size_t i = i0 + size_t(l);
       for (int e = 0; e < 12; ++e) job.cache->M[12 * i + size_t(e)] = M[e][l];
       for (int k = 0; k < 4; ++k) job.cache->qblend[4 * i + k] = qb[k][l];
     }
