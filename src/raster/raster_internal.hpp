@@ -403,6 +403,19 @@ constexpr uint32_t block_cells(int blk) {
       m |= uint32_t(1) << ((r / kCellH) * kCellsPerRow + c / kCellW);
   return m;
 }
+// The cells of block blk's lanes that are set in m (lane l: column l % BW, row l / BW of the
+// block), for a block larger than a cell (the baseline kernel's 8 x 1 blocks where it is built
+// for 8 lanes), which may have contributed in one of its cells only.
+template <int BW, int BH, class VI>
+inline uint32_t lanes_cells(int blk, const VI& m) {
+  constexpr int kBPR = kTS / BW;
+  const int c0 = (blk % kBPR) * BW, r0 = (blk / kBPR) * BH;
+  uint32_t cells = 0;
+  for (int l = 0; l < BW * BH; ++l)
+    if (m[l])
+      cells |= uint32_t(1) << (((r0 + l / BW) / kCellH) * kCellsPerRow + (c0 + l % BW) / kCellW);
+  return cells;
+}
 template <int BW, int BH>
 [[gnu::always_inline]] inline uint64_t cells_blocks(uint32_t cells) {
   if constexpr (BW == kCellW && BH == kCellH) {

@@ -226,7 +226,10 @@ template <int BW, int BH, bool kFull, class T, class Res>
           Tb = con ? Tn : (V)((VI)Tp | (kFull ? in[k] & sign : sign));
           if constexpr (kFull) {
             lb = (con & SI(gidx[j])) | (~con & lb);
-            gcells[j] |= SV::any(con) ? cells : 0u;
+            if constexpr (BW <= kCellW && BH <= kCellH)
+              gcells[j] |= SV::any(con) ? cells : 0u;  // the block lies in one cell
+            else
+              gcells[j] |= lanes_cells<BW, BH>(blk, con);
           }
         }
         // A finished pixel takes nothing more, so checking once a group changes nothing.
