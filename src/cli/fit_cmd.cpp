@@ -120,11 +120,7 @@ ks::cli::CommandGroup group(24, [](CLI::App& app) {
       ks::KeypointReadOptions ko;
       ko.pixel_centre = 0.5;
       const ks::KeypointFile kf = ks::read_keypoints((*files)[i + 1], ko);
-      for (int k = 0; k < ks::kBody25Count; ++k) {
-        const ks::Keypoint2D& p = kf.person.body[size_t(k)];
-        s.detected[size_t(k)] =
-            p.present() ? Eigen::Vector3d(p.x, p.y, p.conf) : Eigen::Vector3d::Zero();
-      }
+      s.detected = ks::fit_keypoints(kf.person);
       samples.push_back(std::move(s));
     }
     const ks::KeypointCalibration c = ks::calibrate_keypoints(samples);

@@ -2,6 +2,7 @@
 // SUBJECT/fit.json: the body model, its shape, the body parameters (the project's params JSON),
 // the camera (the project's camera JSON) and each fit term's final cost. Later stages accept a
 // fit.json written by another tool as long as it has these fields. Documented in docs/fit.md.
+#include <array>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -9,6 +10,7 @@
 #include "body/body_model.hpp"
 #include "core/camera.hpp"
 #include "fit/fit.hpp"
+#include "perceive/openpose.hpp"
 
 namespace ks {
 
@@ -29,6 +31,10 @@ void save_fit(const std::string& path, const std::string& body_model, const FitR
 // level or in the params), "camera". Loads the body model. Throws ks::Error naming the file and
 // the problem.
 SubjectFit load_fit(const std::string& path);
+
+// A keypoint file's chosen person as the fit reads keypoints: (x, y, confidence) in pixels, zero
+// where a keypoint is absent.
+std::array<Eigen::Vector3d, kBody25Count> fit_keypoints(const PersonKeypoints& person);
 
 // The inputs of the fit from a subject directory: image.png (for its size), mask.png (optional)
 // and keypoints.json (OpenPose BODY_25).
