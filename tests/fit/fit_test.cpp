@@ -276,6 +276,21 @@ TEST(FitFile, RoundTripAndMalformed) {
   bad(j.dump(), "no_such_model.npz");
 }
 
+// Every present keypoint at its own index with its own three values, absent ones zero (a build
+// for AVX-512 once shifted them by one coordinate).
+TEST(Fit, KeypointsAsTheFitReadsThem) {
+  PersonKeypoints person;
+  for (int k = 0; k < kBody25Count; ++k)
+    if (k % 3 != 1) person.body[size_t(k)] = {10.0 * k + 1, 10.0 * k + 2, 0.5 + 0.01 * k};
+  const auto kp = fit_keypoints(person);
+  for (int k = 0; k < kBody25Count; ++k) {
+    const Eigen::Vector3d want = k % 3 != 1
+                                     ? Eigen::Vector3d(10.0 * k + 1, 10.0 * k + 2, 0.5 + 0.01 * k)
+                                     : Eigen::Vector3d::Zero();
+    EXPECT_EQ(kp[size_t(k)], want) << "keypoint " << k;
+  }
+}
+
 TEST(Fit, StandingSynthPersonFromTrueKeypointsAndMask) {
   SynthSubject s(4);
   const FitInput in = load_fit_input(s.subject);
