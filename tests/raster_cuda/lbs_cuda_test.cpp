@@ -11,16 +11,11 @@
 #include "body/lbs.hpp"
 #include "core/error.hpp"
 #include "raster/avatar_cloud.hpp"
+#include "raster_cuda/need_gpu.hpp"
 #include "raster_cuda/rasterizer_cuda.hpp"
 
 namespace ks {
 namespace {
-
-#define KS_NEED_GPU()                                                       \
-  do {                                                                      \
-    if (cuda::raster_cuda_devices() == 0)                                   \
-      GTEST_SKIP() << "needs a CUDA GPU: " << cuda::raster_cuda_describe(); \
-  } while (0)
 
 // A skinned cloud: K = 4 joints of 24 per Gaussian with random weights summing to one (some
 // zero), random rigid joint transforms, small pose offsets and random unit normals.

@@ -2,6 +2,7 @@
 // CPU's double path. Every test that needs a GPU skips, saying why, where this build has no
 // CUDA backend or the machine no device (CI); the floors are in docs/rasterizer_cuda.md.
 #include "raster_cuda/rasterizer_cuda.hpp"
+#include "raster_cuda/need_gpu.hpp"
 
 #include <gtest/gtest.h>
 
@@ -16,12 +17,6 @@
 
 namespace ks {
 namespace {
-
-#define KS_NEED_GPU()                                                       \
-  do {                                                                      \
-    if (cuda::raster_cuda_devices() == 0)                                   \
-      GTEST_SKIP() << "needs a CUDA GPU: " << cuda::raster_cuda_describe(); \
-  } while (0)
 
 double psnr_of(const std::vector<float>& a, const std::vector<float>& b) {
   double se = 0;
