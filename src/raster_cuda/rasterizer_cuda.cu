@@ -767,18 +767,6 @@ void RasterizerCuda::upload(const Gaussians& g) {
   s.skinned = false;
 }
 
-void RasterizerCuda::upload_posed(const Gaussians& g) {
-  State& s = *st_;
-  const size_t N = g.size();
-  if (s.means.n != 3 * N || g.sh_degree != s.deg || g.means.size() != 3 * N ||
-      g.quats.size() != 4 * N)
-    throw Error("CUDA rasterizer: upload_posed needs the count and SH degree of the last upload");
-  s.means.upload(g.means, s.stream);
-  s.quats.upload(g.quats, s.stream);
-  s.logits.upload(g.opacity_logits, s.stream);
-  s.have_forward = s.have_backward = false;
-}
-
 void RasterizerCuda::upload_skinned(const Gaussians& c, const std::vector<int>& skin_joints,
                                     const std::vector<float>& skin_weights,
                                     const std::vector<float>& normals) {

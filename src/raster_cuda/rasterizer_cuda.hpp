@@ -42,10 +42,6 @@ class RasterizerCuda {
   // Copies the Gaussians to the device (they stay there until the next upload). Throws for
   // arrays of inconsistent sizes or an SH degree outside 0..3.
   void upload(const Gaussians& g);
-  // Only the means, rotations and opacity logits (what posing changes: playback's frames); the
-  // scales and SH stay as the last upload's, which must have had the same count and degree
-  // (ks::Error otherwise).
-  void upload_posed(const Gaussians& g);
   // Posing on the device (playback): the canonical Gaussians (their scales and SH go straight
   // to the rasterizer's arrays: posing keeps them), their top-k skin (K = skin_joints.size() / N
   // joints and weights each, as lbs_forward takes them) and, for back-face culling, their
@@ -61,7 +57,7 @@ class RasterizerCuda {
   // travel. The next forward renders the posed Gaussians.
   void pose(const std::vector<Eigen::Matrix4d>& transforms, const float* pose_offsets,
             const BackfaceCull* cull);
-  // The Gaussians the device holds now (those of the last upload, upload_posed or pose).
+  // The Gaussians the device holds now (those of the last upload or pose).
   void download_gaussians(Gaussians& out) const;
   // The forward pass on the device, asynchronously (nothing comes back to the host; the call
   // returns once the kernels are queued, after one small copy: the number of tile entries).

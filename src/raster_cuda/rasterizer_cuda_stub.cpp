@@ -32,9 +32,6 @@ RasterizerCuda::~RasterizerCuda() = default;
 void RasterizerCuda::upload(const Gaussians&) {
   no_cuda();
 }
-void RasterizerCuda::upload_posed(const Gaussians&) {
-  no_cuda();
-}
 void RasterizerCuda::upload_skinned(const Gaussians&, const std::vector<int>&,
                                     const std::vector<float>&, const std::vector<float>&) {
   no_cuda();

@@ -188,35 +188,33 @@ TEST(RasterCuda, GradientsMatchFiniteDifferencesOfTheDoublePath) {
 
 // Playback's upload: new means, rotations and opacities with the last upload's scales and SH
 // render as a whole upload of the same Gaussians does.
-TEST(RasterCuda, PosedUploadKeepsScalesAndColours) {
+// The images alone (playback's frames), into a result whose buffers have the right size
+// already; and the Gaussians back as uploaded.
+TEST(RasterCuda, ImagesAloneAndGaussiansDownload) {
   KS_NEED_GPU();
   const Gaussians g = make_avatar_cloud(5000, 2);
-  Gaussians moved = g;
-  for (size_t i = 0; i < moved.size(); ++i) {
-    moved.means[3 * i] += 0.01f;
-    moved.quats[4 * i + 1] += 0.1f;
-    moved.opacity_logits[i] -= 0.2f;
-  }
   const Camera cam = avatar_camera(128, 192);
-  cuda::RasterizerCuda a, b;
-  RasterResult ra, rb;
-  a.upload(g);
-  a.upload_posed(moved);
-  a.forward(cam, RasterSettings{});
-  a.download(ra);
-  b.upload(moved);
-  b.forward(cam, RasterSettings{});
-  b.download(rb);
-  EXPECT_EQ(ra.color.data, rb.color.data);
-  EXPECT_EQ(ra.alpha.data, rb.alpha.data);
-  EXPECT_EQ(ra.radii.size(), g.size());
-  // The images alone, into buffers of the right size already (playback's frames).
-  b.download(rb, false);
-  EXPECT_EQ(ra.color.data, rb.color.data);
-  EXPECT_EQ(ra.alpha.data, rb.alpha.data);
-  EXPECT_TRUE(rb.radii.empty() && rb.depths.empty());
-  Gaussians fewer = make_avatar_cloud(4000, 2);
-  EXPECT_THROW(a.upload_posed(fewer), Error);
+  cuda::RasterizerCuda r;
+  r.upload(g);
+  r.forward(cam, RasterSettings{});
+  RasterResult full, images;
+  r.download(full);
+  EXPECT_EQ(full.radii.size(), g.size());
+  EXPECT_EQ(full.depths.size(), g.size());
+  for (int round = 0; round < 2; ++round) {
+    r.download(images, false);
+    EXPECT_EQ(images.color.data, full.color.data);
+    EXPECT_EQ(images.alpha.data, full.alpha.data);
+    EXPECT_TRUE(images.radii.empty() && images.depths.empty());
+  }
+  Gaussians back;
+  r.download_gaussians(back);
+  EXPECT_EQ(back.sh_degree, g.sh_degree);
+  EXPECT_EQ(back.means, g.means);
+  EXPECT_EQ(back.log_scales, g.log_scales);
+  EXPECT_EQ(back.quats, g.quats);
+  EXPECT_EQ(back.opacity_logits, g.opacity_logits);
+  EXPECT_EQ(back.sh, g.sh);
 }
 
 TEST(RasterCuda, BadInputsAreRefused) {
