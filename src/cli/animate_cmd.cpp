@@ -85,8 +85,8 @@ ks::cli::CommandGroup group(70, [](CLI::App& app) {
   sub->add_option("--background", args->background, "Background colour r,g,b in [0,1]")
       ->capture_default_str();
   sub->add_option("--device", args->device,
-                  "cpu, or cuda: rasterize on an NVIDIA GPU (a build with -DKS_CUDA=ON); each "
-                  "frame is still posed on the CPU")
+                  "cpu, or cuda: pose and rasterize on an NVIDIA GPU (a build with -DKS_CUDA=ON; "
+                  "each frame's skeleton transforms are computed on the CPU)")
       ->check(CLI::IsMember({"cpu", "cuda"}))
       ->capture_default_str();
   sub->callback([args] { run_animate(*args); });
