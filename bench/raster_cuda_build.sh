@@ -23,7 +23,7 @@ compile_rasterizer
 for f in src/raster_cuda/*.cu; do
   o=$obj/$(basename "$f" .cu).o
   "$nvcc" -std=c++17 -O3 -DNDEBUG "${gencode[@]}" -Isrc -isystem /usr/include/eigen3 \
-    -Xcompiler -Wall,-Wextra -c "$f" -o "$o" &
+    -Xcompiler -Wall,-Wextra,-fopenmp -c "$f" -o "$o" &
   pids+=($!)
   lib+=("$o")
 done

@@ -22,10 +22,12 @@
 #include <cstdint>
 #include <cub/device/device_radix_sort.cuh>
 #include <cub/device/device_scan.cuh>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
 #include "core/error.hpp"
+#include "core/parallel_copy.hpp"
 #include "raster_cuda/lbs_cuda.cuh"
 #include "raster_cuda/rasterizer_cuda.hpp"
 
@@ -77,6 +79,98 @@ struct DeviceArray {
             "copy from the device");
   }
 };
+
+// Page-locked host memory that the large per-step copies go through: a copy from pageable
+// memory is staged by the driver through a small pinned buffer at a fraction of the bus's
+// speed; here the host side is copied over the threads into this buffer (or out of it) and the
+// device copies it at the bus's speed. Grows only; `done` marks the last copies out of it.
+struct PinnedStage {
+  unsigned char* p = nullptr;
+  size_t cap = 0;
+  cudaEvent_t done = nullptr;
+  PinnedStage() = default;
+  PinnedStage(const PinnedStage&) = delete;
+  PinnedStage& operator=(const PinnedStage&) = delete;
+  ~PinnedStage() {
+    if (done) cudaEventSynchronize(done), cudaEventDestroy(done);
+    if (p) cudaFreeHost(p);
+  }
+  // At least `bytes`, once the copies queued from it before have finished.
+  unsigned char* get(size_t bytes) {
+    if (done) check(cudaEventSynchronize(done), "pinned stage");
+    if (bytes > cap) {
+      if (p) check(cudaFreeHost(p), "cudaFreeHost");
+      p = nullptr;
+      cap = 0;
+      const size_t c = std::max<size_t>(bytes + bytes / 4, 1);
+      check(cudaHostAlloc(reinterpret_cast<void**>(&p), c, cudaHostAllocDefault), "cudaHostAlloc");
+      cap = c;
+    }
+    return p;
+  }
+};
+
+// One host array to the device or back through the stage.
+struct Span {
+  const void* src;
+  void* dst;
+  size_t bytes;
+};
+constexpr size_t stage_round(size_t b) {
+  return (b + 255) & ~size_t(255);
+}
+
+// Host arrays -> device: copied into the stage over the threads, then queued on `stream`.
+void upload_spans(PinnedStage& stage, cudaStream_t stream, std::initializer_list<Span> spans) {
+  size_t total = 0;
+  for (const Span& x : spans) total += stage_round(x.bytes);
+  unsigned char* st = stage.get(total);
+  size_t off = 0;
+  for (const Span& x : spans) {
+    if (x.bytes) {
+      parallel_copy(static_cast<const unsigned char*>(x.src), x.bytes, st + off);
+      check(cudaMemcpyAsync(x.dst, st + off, x.bytes, cudaMemcpyHostToDevice, stream),
+            "copy to the device");
+    }
+    off += stage_round(x.bytes);
+  }
+  if (!stage.done) check(cudaEventCreateWithFlags(&stage.done, cudaEventDisableTiming), "event");
+  check(cudaEventRecord(stage.done, stream), "cudaEventRecord");
+}
+
+// Device arrays -> host: into the stage, then (after the stream's work) over the threads into
+// the host arrays.
+void download_spans(PinnedStage& stage, cudaStream_t stream, std::initializer_list<Span> spans) {
+  size_t total = 0;
+  for (const Span& x : spans) total += stage_round(x.bytes);
+  unsigned char* st = stage.get(total);
+  size_t off = 0;
+  for (const Span& x : spans) {
+    if (x.bytes)
+      check(cudaMemcpyAsync(st + off, x.src, x.bytes, cudaMemcpyDeviceToHost, stream),
+            "copy from the device");
+    off += stage_round(x.bytes);
+  }
+  check(cudaStreamSynchronize(stream), "copy from the device");
+  off = 0;
+  for (const Span& x : spans) {
+    if (x.bytes) parallel_copy(st + off, x.bytes, static_cast<unsigned char*>(x.dst));
+    off += stage_round(x.bytes);
+  }
+}
+
+// Span of a device array resized to a host vector's size (upload), or of a host vector resized
+// to a device array's (download).
+template <class T>
+Span up(DeviceArray<T>& d, const std::vector<T>& v) {
+  d.resize(v.size());
+  return {v.data(), d.p, v.size() * sizeof(T)};
+}
+template <class T>
+Span down(const DeviceArray<T>& d, std::vector<T>& v) {
+  v.resize(d.n);
+  return {d.p, v.data(), d.n * sizeof(T)};
+}
 
 // The camera as the kernels read it (projection.hpp's CameraT<float>).
 struct Cam {
@@ -682,6 +776,7 @@ struct RasterizerCuda::State {
   DeviceArray<float> c_means, c_quats, c_logits, skin_w, normals, tf, pose_off;
   DeviceArray<int> skin_j;
   std::vector<float> tf_host;
+  PinnedStage stage;  // the per-step copies' host side
   int skin_K = 0, skin_max_joint = -1;
   bool skinned = false;
   // The last forward.
@@ -758,11 +853,9 @@ void RasterizerCuda::upload(const Gaussians& g) {
   State& s = *st_;
   s.N = int(N);
   s.deg = g.sh_degree;
-  s.means.upload(g.means, s.stream);
-  s.log_scales.upload(g.log_scales, s.stream);
-  s.quats.upload(g.quats, s.stream);
-  s.logits.upload(g.opacity_logits, s.stream);
-  s.sh.upload(g.sh, s.stream);
+  upload_spans(s.stage, s.stream,
+               {up(s.means, g.means), up(s.log_scales, g.log_scales), up(s.quats, g.quats),
+                up(s.logits, g.opacity_logits), up(s.sh, g.sh)});
   s.have_forward = s.have_backward = false;
   s.skinned = false;
 }
@@ -950,17 +1043,12 @@ void RasterizerCuda::download(RasterResult& out, bool per_gaussian) const {
     shape(out.depth, 1);
   else
     out.depth = Image();
-  s.color.download(out.color.data, s.stream);
-  s.alpha.download(out.alpha.data, s.stream);
-  if (s.full_forward) s.depth.download(out.depth.data, s.stream);
-  if (per_gaussian) {
-    s.radii.download(out.radii, s.stream);
-    s.depths.download(out.depths, s.stream);
-  } else {
-    out.radii.clear();
-    out.depths.clear();
-  }
-  check(cudaStreamSynchronize(s.stream), "download");
+  if (!per_gaussian) out.radii.clear(), out.depths.clear();
+  download_spans(s.stage, s.stream,
+                 {down(s.color, out.color.data), down(s.alpha, out.alpha.data),
+                  s.full_forward ? down(s.depth, out.depth.data) : Span{nullptr, nullptr, 0},
+                  per_gaussian ? down(s.radii, out.radii) : Span{nullptr, nullptr, 0},
+                  per_gaussian ? down(s.depths, out.depths) : Span{nullptr, nullptr, 0}});
 }
 
 void RasterizerCuda::backward(const Image& dL_dcolor, const Image& dL_dalpha) {
@@ -976,8 +1064,9 @@ void RasterizerCuda::backward(const Image& dL_dcolor, const Image& dL_dalpha) {
     throw Error("CUDA rasterizer: dL/dalpha must be empty or " + std::to_string(W) + " x " +
                 std::to_string(H) + " x 1");
   cudaStream_t st = s.stream;
-  s.dL_dcolor.upload(dL_dcolor.data, st);
-  if (with_alpha) s.dL_dalpha.upload(dL_dalpha.data, st);
+  upload_spans(s.stage, st,
+               {up(s.dL_dcolor, dL_dcolor.data),
+                with_alpha ? up(s.dL_dalpha, dL_dalpha.data) : Span{nullptr, nullptr, 0}});
   const int N = s.N;
   const int K = (s.deg + 1) * (s.deg + 1);
   s.gscreen.resize(size_t(kNG) * N);
@@ -1008,13 +1097,10 @@ void RasterizerCuda::backward(const Image& dL_dcolor, const Image& dL_dalpha) {
 void RasterizerCuda::download_grads(RasterGrads& gr) const {
   State& s = *st_;
   if (!s.have_backward) throw Error("CUDA rasterizer: download_grads before any backward");
-  s.g_means.download(gr.means, s.stream);
-  s.g_ls.download(gr.log_scales, s.stream);
-  s.g_q.download(gr.quats, s.stream);
-  s.g_logit.download(gr.opacity_logits, s.stream);
-  s.g_sh.download(gr.sh, s.stream);
-  s.g_m2d.download(gr.means2d, s.stream);
-  check(cudaStreamSynchronize(s.stream), "download of the gradients");
+  download_spans(
+      s.stage, s.stream,
+      {down(s.g_means, gr.means), down(s.g_ls, gr.log_scales), down(s.g_q, gr.quats),
+       down(s.g_logit, gr.opacity_logits), down(s.g_sh, gr.sh), down(s.g_m2d, gr.means2d)});
 }
 
 void RasterizerCuda::synchronize() const {
