@@ -196,13 +196,6 @@ void throw_joint_out_of_range(const std::vector<int>& skin_joints, uint32_t J) {
                   std::to_string(J) + " transforms)");
 }
 
-void set_transforms(const std::vector<Eigen::Matrix4d>& transforms, std::vector<float>& tf) {
-  tf.resize(12 * transforms.size());
-  for (size_t j = 0; j < transforms.size(); ++j)
-    for (int r = 0; r < 3; ++r)
-      for (int cc = 0; cc < 4; ++cc) tf[12 * j + size_t(4 * r + cc)] = float(transforms[j](r, cc));
-}
-
 void set_cull(const BackfaceCull* cull, size_t n, LbsJob& job) {
   if (cull && !(cull->threshold >= 0.f && cull->threshold <= 1.f))
     throw Error("lbs_forward: the back-face cull threshold must be in [0, 1]");
@@ -223,6 +216,13 @@ void run_range(const LbsJob& job, size_t b, size_t e) {
 }
 
 }  // namespace
+
+void skin_transforms_3x4(const std::vector<Eigen::Matrix4d>& transforms, std::vector<float>& tf) {
+  tf.resize(12 * transforms.size());
+  for (size_t j = 0; j < transforms.size(); ++j)
+    for (int r = 0; r < 3; ++r)
+      for (int cc = 0; cc < 4; ++cc) tf[12 * j + size_t(4 * r + cc)] = float(transforms[j](r, cc));
+}
 
 void lbs_forward(const Gaussians& c, const float* pose_offsets, const std::vector<int>& skin_joints,
                  const std::vector<float>& skin_weights,
@@ -247,7 +247,7 @@ void lbs_forward(const Gaussians& c, const float* pose_offsets, const std::vecto
     cache->qblend.resize(4 * size_t(n));
   }
   std::vector<float> tf;
-  set_transforms(transforms, tf);
+  skin_transforms_3x4(transforms, tf);
   job.c = &c;
   job.pose_offsets = pose_offsets;
   job.joints = skin_joints.data();
@@ -303,7 +303,7 @@ void LbsRanges::set_pose(const std::vector<Eigen::Matrix4d>& transforms, const f
   if (int(transforms.size()) != J_)
     throw Error("LbsRanges: " + std::to_string(transforms.size()) + " transforms for " +
                 std::to_string(J_) + " joints");
-  set_transforms(transforms, tf_);
+  skin_transforms_3x4(transforms, tf_);
   job_->tf = tf_.data();
   job_->pose_offsets = pose_offsets;
   set_cull(cull, job_->c->size(), *job_);

@@ -49,6 +49,10 @@ struct LbsCache {
   std::vector<float> qblend;  // 4 N: q(M) (w, x, y, z)
 };
 
+// The skinning transforms as the posing kernels read them (here and on the GPU): each one's top
+// 3 x 4, row-major, in single precision, 12 floats a joint.
+void skin_transforms_3x4(const std::vector<Eigen::Matrix4d>& transforms, std::vector<float>& tf);
+
 // Poses canonical Gaussians with k = skin_joints.size() / N weights each. pose_offsets: 3N or
 // nullptr. Opacities, scales and SH are copied (opacities of culled Gaussians set to
 // kCulledOpacityLogit when `cull` is given). `posed` is resized, its buffers reused; `cache` may

@@ -121,10 +121,15 @@ constexpr size_t stage_round(size_t b) {
 }
 
 // Host arrays -> device: copied into the stage over the threads, then queued on `stream`.
-void upload_spans(PinnedStage& stage, cudaStream_t stream, std::initializer_list<Span> spans) {
+// The stage's room for these spans, each from a 256-byte boundary.
+size_t stage_bytes(std::initializer_list<Span> spans) {
   size_t total = 0;
   for (const Span& x : spans) total += stage_round(x.bytes);
-  unsigned char* st = stage.get(total);
+  return total;
+}
+
+void upload_spans(PinnedStage& stage, cudaStream_t stream, std::initializer_list<Span> spans) {
+  unsigned char* st = stage.get(stage_bytes(spans));
   size_t off = 0;
   for (const Span& x : spans) {
     if (x.bytes) {
@@ -141,9 +146,7 @@ void upload_spans(PinnedStage& stage, cudaStream_t stream, std::initializer_list
 // Device arrays -> host: into the stage, then (after the stream's work) over the threads into
 // the host arrays.
 void download_spans(PinnedStage& stage, cudaStream_t stream, std::initializer_list<Span> spans) {
-  size_t total = 0;
-  for (const Span& x : spans) total += stage_round(x.bytes);
-  unsigned char* st = stage.get(total);
+  unsigned char* st = stage.get(stage_bytes(spans));
   size_t off = 0;
   for (const Span& x : spans) {
     if (x.bytes)
@@ -901,11 +904,7 @@ void RasterizerCuda::pose(const std::vector<Eigen::Matrix4d>& transforms, const 
   if (cull && !(cull->threshold >= 0.f && cull->threshold <= 1.f))
     throw Error("CUDA posing: the back-face cull threshold must be in [0, 1]");
   const size_t N = size_t(s.N);
-  s.tf_host.resize(12 * transforms.size());
-  for (size_t j = 0; j < transforms.size(); ++j)
-    for (int r = 0; r < 3; ++r)
-      for (int q = 0; q < 4; ++q)
-        s.tf_host[12 * j + size_t(4 * r + q)] = float(transforms[j](r, q));
+  skin_transforms_3x4(transforms, s.tf_host);
   s.tf.upload(s.tf_host, s.stream);
   LbsArgs a;
   if (pose_offsets && N > 0) {
