@@ -300,7 +300,14 @@ void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* b
   if (full) out.entry_cells.resize(out.point_list.size());
   T bg_row[3 * kTS];
   for (int k = 0; k < 3 * kTS; ++k) bg_row[k] = bg[k % 3];
-#pragma omp parallel for schedule(dynamic, 2)
+  // Tiles a thread takes at a time: a run along a tile row, whose lists (point_list, and
+  // entry_cells written beside it) lie one after another, so that one core reads and writes
+  // them as continuous streams (in-process A/B on the bench scene against runs of 2:
+  // compositing x0.95 with the backward's state, x0.97 image only; playback x0.97; blocks of
+  // 2 x 2 tiles, which share more records but jump between rows, x1.04), and at least 8 runs a
+  // thread for the balance.
+  const int run = std::clamp(ntiles / (8 * omp_get_max_threads()), 2, 16);
+#pragma omp parallel for schedule(dynamic, run)
   for (int tile = 0; tile < ntiles; ++tile) {
     if (out.tile_ranges[2 * tile] == out.tile_ranges[2 * tile + 1]) {
       // No Gaussian: the background, what the kernels would store for it.
