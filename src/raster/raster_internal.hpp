@@ -465,13 +465,13 @@ constexpr bool fours_side_by_side() {
 
 // A finished tile's pixels from its tile-local state (kTilePixels each, pixel (c, r) at
 // index(c, r)) into `out`: colour over the background by the final transmittance |Tt|, alpha,
-// and with `full` the expected depth and the backward's state (final transmittance, last
-// contributor). Four pixels of a row at a time where the image holds them (the colours
+// with `full` the backward's state (final transmittance, last contributor) and with `depth` the
+// expected depth. Four pixels of a row at a time where the image holds them (the colours
 // interleaved by shuffles), the same operations on each pixel as one at a time.
 template <class T, class S, int (*index)(int, int) = row_index>
 [[gnu::always_inline]] inline void store_tile(RasterResultT<T>& out, int ox, int oy, const T* bg,
                                               const T* Tt, const T* C0, const T* C1, const T* C2,
-                                              const T* Dp, const S* last, bool full) {
+                                              const T* Dp, const S* last, bool full, bool depth) {
   static_assert(fours_side_by_side<index>(), "rows of four pixels side by side");
   static_assert(sizeof(S) == sizeof(T), "S: the integer of T's width");
   typedef T V4 __attribute__((vector_size(4 * sizeof(T))));
@@ -496,8 +496,8 @@ template <class T, class S, int (*index)(int, int) = row_index>
       vstore(rgb + 4, __builtin_shufflevector(t1, r0, 0, 1, 6, 2));
       vstore(rgb + 8, __builtin_shufflevector(r2, t2, 2, 4, 5, 3));
       vstore(&out.alpha.data[pix], T(1) - Tf);
+      if (depth) vstore(&out.depth.data[pix], vload<V4>(Dp + p));
       if (full) {
-        vstore(&out.depth.data[pix], vload<V4>(Dp + p));
         vstore(&out.final_T[pix], Tf);
         const auto n =
             __builtin_convertvector(vload<I4>(last + p), uint32_t __attribute__((vector_size(16))));
@@ -512,8 +512,8 @@ template <class T, class S, int (*index)(int, int) = row_index>
       out.color.data[3 * pix + 1] = C1[p] + Tf * bg[1];
       out.color.data[3 * pix + 2] = C2[p] + Tf * bg[2];
       out.alpha.data[pix] = 1 - Tf;
+      if (depth) out.depth.data[pix] = Dp[p];
       if (full) {
-        out.depth.data[pix] = Dp[p];
         out.final_T[pix] = Tf;
         out.n_contrib[pix] = uint32_t(last[p]);
       }

@@ -103,10 +103,10 @@ void forward(const GaussiansT<T>& g, const GaussianSource* source, const Camera&
   shape_image(out.color, W, H, 3);
   shape_image(out.alpha, W, H, 1);
   out.image_only = s.image_only;
-  if (s.image_only)
-    out.depth = ImageT<T>();
-  else
+  if (s.depth)
     shape_image(out.depth, W, H, 1);
+  else
+    out.depth = ImageT<T>();
   out.radii.resize(N);
   out.depths.resize(N);
   out.tile_rects.resize(2 * N);

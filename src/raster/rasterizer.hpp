@@ -41,6 +41,10 @@ struct RasterSettings {
   // (depth, final_T, n_contrib and entry_cells come back empty; rasterize_backward refuses such
   // a result).
   bool image_only = false;
+  // Also the expected depth (RasterResultT::depth, sum of w_i z_i); off, the compositing neither
+  // accumulates nor writes it (nothing in training or playback reads it: in-process A/B on the
+  // bench scene, compositing x0.97 without it).
+  bool depth = false;
 };
 
 // Whether this CPU can run RasterKernel::kAvx2 / kAvx512.
@@ -59,7 +63,7 @@ struct RasterResultT {
   ImageT<T> color;          // W x H x 3
   ImageT<T> alpha;          // W x H x 1
   ImageT<T> depth;          // W x H x 1, expected depth (sum of w_i z_i), not normalised by alpha;
-                            // empty after an image_only forward
+                            // empty unless the settings asked for it (RasterSettings::depth)
   bool image_only = false;  // the settings' image_only of the forward that filled this
   // Per Gaussian (N).
   std::vector<int> radii;  // pixel radius ceil(3 sigma_max), 0 = not visible (culled)

@@ -41,8 +41,8 @@ static_assert((kGather + 7) / 8 * 8 <= 256 && kGroup <= 8,
               "slot numbers (whole bytes of eight) fit a byte");
 
 // One tile of the forward pass. One SIMD vector is a block of BW x BH pixels (BW columns of BH
-// rows); the tile's pixel state is kept block by block (block_index). kFull: also the expected
-// depth and the backward's state (last contributor, final transmittance). Every block shape
+// rows); the tile's pixel state is kept block by block (block_index). kFull: also the backward's
+// state (last contributor, final transmittance); kDepth: also the expected depth. Every block shape
 // does the same arithmetic per pixel, operation for operation (madd fused on 8 lanes), so the
 // AVX2 and AVX-512 kernels give the same image, and the baseline's agrees up to rounding.
 //
@@ -52,7 +52,7 @@ static_assert((kGather + 7) / 8 * 8 <= 256 && kGroup <= 8,
 // state in registers, in list order (so each pixel sees the same Gaussians in the same order as
 // entry by entry), and stops as soon as all its pixels are finished. kFull also records, per
 // entry, the cells where the Gaussian contributed to a pixel (entry_cells).
-template <int BW, int BH, bool kFull, class T, class Res>
+template <int BW, int BH, bool kFull, bool kDepth, class T, class Res>
 [[gnu::always_inline]] inline void composite_tile(Res& out, int tile, int tiles_x, int W, int H,
                                                   const T* bg) {
   constexpr int N = BW * BH, kBlocks = kTilePixels / N;
@@ -171,7 +171,8 @@ template <int BW, int BH, bool kFull, class T, class Res>
       V Tb = vload<V>(Tt + p0), c0 = vload<V>(C0 + p0), c1 = vload<V>(C1 + p0),
         c2 = vload<V>(C2 + p0), dp{};
       VI lb{};
-      if constexpr (kFull) dp = vload<V>(Dp + p0), lb = vload<VI>(last + p0);
+      if constexpr (kFull) lb = vload<VI>(last + p0);
+      if constexpr (kDepth) dp = vload<V>(Dp + p0);
       // The list padded to whole groups with the empty slot (opacity 0: no pixel takes it),
       // by one store of a whole group's worth (no loop whose count is cnt's remainder).
       uint8_t* li = lists[blk];
@@ -222,7 +223,7 @@ template <int BW, int BH, bool kFull, class T, class Res>
           c0 = madd(w, V{} + gr[j], c0);
           c1 = madd(w, V{} + gg[j], c1);
           c2 = madd(w, V{} + gbl[j], c2);
-          if constexpr (kFull) dp = madd(w, V{} + gz[j], dp);
+          if constexpr (kDepth) dp = madd(w, V{} + gz[j], dp);
           Tb = con ? Tn : (V)((VI)Tp | (kFull ? in[k] & sign : sign));
           if constexpr (kFull) {
             lb = (con & SI(gidx[j])) | (~con & lb);
@@ -240,34 +241,35 @@ template <int BW, int BH, bool kFull, class T, class Res>
         for (int k = 0; k < kGroup; ++k) al[k] = al_next[k], in[k] = in_next[k];
       }
       vstore(Tt + p0, Tb), vstore(C0 + p0, c0), vstore(C1 + p0, c1), vstore(C2 + p0, c2);
-      if constexpr (kFull) vstore(Dp + p0, dp), vstore(last + p0, lb);
+      if constexpr (kFull) vstore(last + p0, lb);
+      if constexpr (kDepth) vstore(Dp + p0, dp);
     }
     if constexpr (kFull)
       for (int k = 0; k < n; ++k) cells_out[start + uint32_t(gidx[k]) - 1] = gcells[k];
   }
   // Entries after the tile finished take no pixel.
   if constexpr (kFull) std::fill(cells_out + std::min(e0, end), cells_out + end, 0u);
-  store_tile<T, SI, block_index<BW, BH>>(out, ox, oy, bg, Tt, C0, C1, C2, Dp, last, kFull);
+  store_tile<T, SI, block_index<BW, BH>>(out, ox, oy, bg, Tt, C0, C1, C2, Dp, last, kFull, kDepth);
 }
 
 // The AVX2 kernel: one 8-lane vector is a block of 4 x 2 pixels, which a small Gaussian covers
 // in fewer steps than rows of eight (on the bench scene and a reconstructed avatar, 15-19 %
 // fewer block visits by the Gaussians' rectangles).
-template <bool kFull, class Res>
+template <bool kFull, bool kDepth, class Res>
 __attribute__((target("avx2,fma"), flatten)) void composite_tile_avx2(Res& out, int tile,
                                                                       int tiles_x, int W, int H,
                                                                       const float* bg) {
-  composite_tile<4, 2, kFull, float>(out, tile, tiles_x, W, H, bg);
+  composite_tile<4, 2, kFull, kDepth, float>(out, tile, tiles_x, W, H, bg);
 }
 
 // The AVX-512 kernel: the AVX2 kernel's code (the same blocks of 4 x 2 pixels on 8 lanes)
 // compiled with AVX-512VL, which gives it 32 vector registers instead of 16 (the walk's state,
 // the group being composited and the next group's alphas fit without spilling) and comparisons
 // into mask registers. The same fused multiply-adds (madd) and no others: the same images.
-template <bool kFull, class Res>
+template <bool kFull, bool kDepth, class Res>
 __attribute__((target("avx2,fma,avx512f,avx512dq,avx512bw,avx512vl"), flatten)) void
 composite_tile_avx512(Res& out, int tile, int tiles_x, int W, int H, const float* bg) {
-  composite_tile<4, 2, kFull, float>(out, tile, tiles_x, W, H, bg);
+  composite_tile<4, 2, kFull, kDepth, float>(out, tile, tiles_x, W, H, bg);
 }
 
 // A tile no Gaussian touches: colour = background, alpha 0 (and depth 0, final transmittance 1,
@@ -275,19 +277,34 @@ composite_tile_avx512(Res& out, int tile, int tiles_x, int W, int H, const float
 // colour of a whole tile row (kTS pixels, 3 values each), copied row by row.
 template <class T>
 void fill_empty_tile(RasterResultT<T>& out, int tile, int tiles_x, int W, int H, const T* bg_row,
-                     bool full) {
+                     bool full, bool depth) {
   const int ox = (tile % tiles_x) * kTS, oy = (tile / tiles_x) * kTS;
   const int w = std::min(kTS, W - ox);
   for (int r = 0; r < kTS && oy + r < H; ++r) {
     const size_t pix = size_t(oy + r) * W + ox;
     std::memcpy(&out.color.data[3 * pix], bg_row, sizeof(T) * 3 * size_t(w));
     std::fill_n(&out.alpha.data[pix], w, T(0));
+    if (depth) std::fill_n(&out.depth.data[pix], w, T(0));
     if (full) {
-      std::fill_n(&out.depth.data[pix], w, T(0));
       std::fill_n(&out.final_T[pix], w, T(1));
       std::fill_n(&out.n_contrib[pix], w, 0u);
     }
   }
+}
+
+// One tile by the kernel of `isa` (the double instantiation has the baseline's only).
+template <bool kFull, bool kDepth, class T>
+void composite_tile_isa(RasterResultT<T>& out, int tile, int tiles_x, int W, int H, const T* bg,
+                        Isa isa) {
+  if constexpr (std::is_same_v<T, float>) {
+#if defined(__x86_64__)
+    if (isa == Isa::kAvx512)
+      return composite_tile_avx512<kFull, kDepth>(out, tile, tiles_x, W, H, bg);
+#endif
+    if (isa != Isa::kBaseline)
+      return composite_tile_avx2<kFull, kDepth>(out, tile, tiles_x, W, H, bg);
+  }
+  composite_tile<kCW, 1, kFull, kDepth, T>(out, tile, tiles_x, W, H, bg);
 }
 
 }  // namespace
@@ -296,7 +313,7 @@ template <class T>
 void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* bg, Isa isa) {
   const int W = out.color.width, H = out.color.height;
   const int ntiles = tiles_x * tiles_y;
-  const bool full = !out.image_only;
+  const bool full = !out.image_only, depth = !out.depth.data.empty();
   if (full) out.entry_cells.resize(out.point_list.size());
   T bg_row[3 * kTS];
   for (int k = 0; k < 3 * kTS; ++k) bg_row[k] = bg[k % 3];
@@ -311,31 +328,15 @@ void composite_tiles(RasterResultT<T>& out, int tiles_x, int tiles_y, const T* b
   for (int tile = 0; tile < ntiles; ++tile) {
     if (out.tile_ranges[2 * tile] == out.tile_ranges[2 * tile + 1]) {
       // No Gaussian: the background, what the kernels would store for it.
-      fill_empty_tile(out, tile, tiles_x, W, H, bg_row, full);
+      fill_empty_tile(out, tile, tiles_x, W, H, bg_row, full, depth);
       continue;
     }
-    if constexpr (std::is_same_v<T, float>) {
-#if defined(__x86_64__)
-      if (isa == Isa::kAvx512) {
-        if (full)
-          composite_tile_avx512<true>(out, tile, tiles_x, W, H, bg);
-        else
-          composite_tile_avx512<false>(out, tile, tiles_x, W, H, bg);
-        continue;
-      }
-#endif
-      if (isa != Isa::kBaseline) {
-        if (full)
-          composite_tile_avx2<true>(out, tile, tiles_x, W, H, bg);
-        else
-          composite_tile_avx2<false>(out, tile, tiles_x, W, H, bg);
-        continue;
-      }
-    }
     if (full)
-      composite_tile<kCW, 1, true, T>(out, tile, tiles_x, W, H, bg);
+      depth ? composite_tile_isa<true, true>(out, tile, tiles_x, W, H, bg, isa)
+            : composite_tile_isa<true, false>(out, tile, tiles_x, W, H, bg, isa);
     else
-      composite_tile<kCW, 1, false, T>(out, tile, tiles_x, W, H, bg);
+      depth ? composite_tile_isa<false, true>(out, tile, tiles_x, W, H, bg, isa)
+            : composite_tile_isa<false, false>(out, tile, tiles_x, W, H, bg, isa);
   }
 }
 

@@ -423,7 +423,7 @@ __global__ void ranges_kernel(uint32_t M, const uint64_t* __restrict__ keys,
 struct Images {
   float* color;      // W H 3
   float* alpha;      // W H
-  float* depth;      // W H (null: image only)
+  float* depth;      // W H (null: not asked for, RasterSettings::depth)
   float* final_T;    // W H (null: image only)
   uint32_t* n_last;  // W H: one past the last contributor's index in the tile's list
 };
@@ -795,7 +795,7 @@ struct RasterizerCuda::State {
   }
   Images images() {
     const bool full = full_forward;
-    return {color.p, alpha.p, full ? depth.p : nullptr, full ? final_T.p : nullptr,
+    return {color.p, alpha.p, settings.depth ? depth.p : nullptr, full ? final_T.p : nullptr,
             full ? n_last.p : nullptr};
   }
 };
@@ -963,8 +963,8 @@ void RasterizerCuda::forward(const Camera& camera, const RasterSettings& setting
   s.ranges.resize(ntiles);
   s.color.resize(3 * npix);
   s.alpha.resize(npix);
+  if (settings.depth) s.depth.resize(npix);
   if (s.full_forward) {
-    s.depth.resize(npix);
     s.final_T.resize(npix);
     s.n_last.resize(npix);
   }
@@ -1038,14 +1038,14 @@ void RasterizerCuda::download(RasterResult& out, bool per_gaussian) const {
   };
   shape(out.color, 3);
   shape(out.alpha, 1);
-  if (s.full_forward)
+  if (s.settings.depth)
     shape(out.depth, 1);
   else
     out.depth = Image();
   if (!per_gaussian) out.radii.clear(), out.depths.clear();
   download_spans(s.stage, s.stream,
                  {down(s.color, out.color.data), down(s.alpha, out.alpha.data),
-                  s.full_forward ? down(s.depth, out.depth.data) : Span{nullptr, nullptr, 0},
+                  s.settings.depth ? down(s.depth, out.depth.data) : Span{nullptr, nullptr, 0},
                   per_gaussian ? down(s.radii, out.radii) : Span{nullptr, nullptr, 0},
                   per_gaussian ? down(s.depths, out.depths) : Span{nullptr, nullptr, 0}});
 }

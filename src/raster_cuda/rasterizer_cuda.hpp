@@ -61,10 +61,10 @@ class RasterizerCuda {
   void download_gaussians(Gaussians& out) const;
   // The forward pass on the device, asynchronously (nothing comes back to the host; the call
   // returns once the kernels are queued, after one small copy: the number of tile entries).
-  // settings.kernel is ignored; settings.image_only skips the expected depth and the
-  // backward's per-pixel state, as on the CPU.
+  // settings.kernel is ignored; settings.image_only skips the backward's per-pixel state and
+  // the expected depth is made only with settings.depth, as on the CPU.
   void forward(const Camera& cam, const RasterSettings& settings);
-  // The last forward's images (colour, alpha, and depth unless image_only) and, with
+  // The last forward's images (colour, alpha, and depth with settings.depth) and, with
   // per_gaussian, the radii and depths into `out` (its other fields are left alone; without
   // per_gaussian radii and depths are left empty: playback needs the images only).
   void download(RasterResult& out, bool per_gaussian = true) const;

@@ -20,7 +20,10 @@ using test::reference_render;
 using test::SceneOptions;
 using test::test_camera;
 
-void expect_matches_reference(const Gaussians& g, const Camera& cam, const RasterSettings& s) {
+void expect_matches_reference(const Gaussians& g, const Camera& cam,
+                              const RasterSettings& settings) {
+  RasterSettings s = settings;
+  s.depth = true;
   RasterResult r;
   rasterize_forward(g, cam, s, r);
   const auto ref = reference_render(g, cam, s);
@@ -226,6 +229,7 @@ void expect_kernel_agrees(RasterKernel kernel, unsigned seed, double scale_min, 
   const Camera cam = test_camera(w, h, 0.45, 0.55);
   RasterSettings s;
   s.background[0] = 0.3f;
+  s.depth = true;
   RasterResult r[2];
   RasterGrads gr[2];
   Image dc(cam.width, cam.height, 3), da(cam.width, cam.height, 1);
@@ -403,9 +407,11 @@ TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
   for (const RasterKernel k : {RasterKernel::kBaseline, RasterKernel::kAuto}) {
     RasterSettings s;
     s.kernel = k;
+    s.depth = true;
     RasterResult full, img;
     rasterize_forward(g, cam, s, full);
     s.image_only = true;
+    s.depth = false;
     rasterize_forward(g, cam, s, img);
     EXPECT_EQ(img.color.data, full.color.data);
     EXPECT_EQ(img.alpha.data, full.alpha.data);
@@ -421,6 +427,7 @@ TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
     EXPECT_THROW(rasterize_backward(g, cam, s, img, dc, Image(), gr), Error);
     // The same buffers serve a full forward again.
     s.image_only = false;
+    s.depth = true;
     rasterize_forward(g, cam, s, img);
     EXPECT_EQ(img.depth.data, full.depth.data);
     EXPECT_EQ(img.n_contrib, full.n_contrib);
@@ -437,6 +444,60 @@ TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
   EXPECT_EQ(img.color.data, full.color.data);
   EXPECT_EQ(img.radii, full.radii);
   EXPECT_EQ(visible_records(img), visible_records(full));
+}
+
+// The expected depth is made only when asked for, and asking changes nothing else: the same
+// images, backward state and gradients without it; the same depth with image_only.
+TEST(Raster, DepthOnlyWhenAskedFor) {
+  SceneOptions o;
+  o.n = 300;
+  o.sh_degree = 3;
+  o.opacity_max = 0.999;
+  const Gaussians g = random_scene(o, 37);
+  const Camera cam = test_camera(70, 90, 0.45, 0.55);
+  Image dc(cam.width, cam.height, 3);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> U(-1.f, 1.f);
+  for (float& v : dc.data) v = U(rng);
+  for (const RasterKernel k : {RasterKernel::kBaseline, RasterKernel::kAuto}) {
+    RasterSettings s;
+    s.kernel = k;
+    s.depth = true;
+    RasterResult with, without, img;
+    RasterGrads gw, gwo;
+    rasterize_forward(g, cam, s, with);
+    rasterize_backward(g, cam, s, with, dc, Image(), gw);
+    ASSERT_EQ(with.depth.data.size(), size_t(cam.width) * cam.height);
+    EXPECT_GT(*std::max_element(with.depth.data.begin(), with.depth.data.end()), 0.f);
+    s.depth = false;
+    rasterize_forward(g, cam, s, without);
+    rasterize_backward(g, cam, s, without, dc, Image(), gwo);
+    EXPECT_TRUE(without.depth.data.empty());
+    EXPECT_EQ(without.color.data, with.color.data);
+    EXPECT_EQ(without.alpha.data, with.alpha.data);
+    EXPECT_EQ(without.final_T, with.final_T);
+    EXPECT_EQ(without.n_contrib, with.n_contrib);
+    EXPECT_EQ(without.entry_cells, with.entry_cells);
+    EXPECT_EQ(gwo.means, gw.means);
+    EXPECT_EQ(gwo.sh, gw.sh);
+    EXPECT_EQ(gwo.opacity_logits, gw.opacity_logits);
+    s.image_only = true;
+    s.depth = true;
+    rasterize_forward(g, cam, s, img);
+    EXPECT_EQ(img.depth.data, with.depth.data);
+    EXPECT_EQ(img.color.data, with.color.data);
+  }
+  const GaussiansD gd = GaussiansD::from(g);
+  RasterSettings s;
+  RasterResultD with, without;
+  s.depth = true;
+  rasterize_forward(gd, cam, s, with);
+  s.depth = false;
+  rasterize_forward(gd, cam, s, without);
+  EXPECT_EQ(with.depth.data.size(), size_t(cam.width) * cam.height);
+  EXPECT_TRUE(without.depth.data.empty());
+  EXPECT_EQ(without.color.data, with.color.data);
+  EXPECT_EQ(without.n_contrib, with.n_contrib);
 }
 
 TEST(Raster, BaselineAndAvx2KernelsAgree) {
@@ -478,6 +539,7 @@ TEST(Raster, Avx512KernelsGiveTheAvx2Bits) {
     for (int k = 0; k < 2; ++k) {
       RasterSettings s;
       s.background[1] = 0.4f;
+      s.depth = true;
       s.kernel = k == 0 ? RasterKernel::kAvx2 : RasterKernel::kAvx512;
       rasterize_forward(g, cam, s, r[k]);
       rasterize_backward(g, cam, s, r[k], dc, da, gr[k]);

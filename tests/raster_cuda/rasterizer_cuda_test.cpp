@@ -61,6 +61,7 @@ TEST(RasterCuda, ForwardMatchesTheCpu) {
     const Camera cam = avatar_camera(320, 480);
     RasterSettings s;
     s.background[0] = 0.2f, s.background[1] = 0.5f, s.background[2] = 0.9f;
+    s.depth = true;
     RasterResult cpu, gpu;
     rasterize_forward(g, cam, s, cpu);
     cuda::RasterizerCuda r;
@@ -86,6 +87,7 @@ TEST(RasterCuda, ForwardMatchesTheCpu) {
     // The image-only forward gives the same colour, and no backward follows it.
     RasterSettings io = s;
     io.image_only = true;
+    io.depth = false;
     RasterResult img;
     r.forward(cam, io);
     r.download(img);
