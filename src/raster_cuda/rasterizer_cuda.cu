@@ -491,8 +491,8 @@ __global__ void __launch_bounds__(kBlock)
   img.color[3 * pix + 1] = c1 + T * bg.y;
   img.color[3 * pix + 2] = c2 + T * bg.z;
   img.alpha[pix] = 1.f - T;
-  if (img.depth) {
-    img.depth[pix] = dsum;
+  if (img.depth) img.depth[pix] = dsum;
+  if (img.final_T) {
     img.final_T[pix] = T;
     img.n_last[pix] = last;
   }
