@@ -397,12 +397,17 @@ std::vector<T> visible_records(const RasterResultT<T>& r) {
   return out;
 }
 
-TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
+// 300 Gaussians of SH degree 3, some nearly opaque (pixels finish early).
+Gaussians opaque_sh3_scene(unsigned seed) {
   SceneOptions o;
   o.n = 300;
   o.sh_degree = 3;
   o.opacity_max = 0.999;
-  const Gaussians g = random_scene(o, 31);
+  return random_scene(o, seed);
+}
+
+TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
+  const Gaussians g = opaque_sh3_scene(31);
   const Camera cam = test_camera(70, 90, 0.45, 0.55);
   for (const RasterKernel k : {RasterKernel::kBaseline, RasterKernel::kAuto}) {
     RasterSettings s;
@@ -453,11 +458,7 @@ TEST(Raster, ImageOnlyGivesTheSameImageWithoutBackwardState) {
 TEST(Raster, DepthOnlyWhenAskedFor) {
   const int saved = omp_get_max_threads();
   omp_set_num_threads(1);
-  SceneOptions o;
-  o.n = 300;
-  o.sh_degree = 3;
-  o.opacity_max = 0.999;
-  const Gaussians g = random_scene(o, 37);
+  const Gaussians g = opaque_sh3_scene(37);
   const Camera cam = test_camera(70, 90, 0.45, 0.55);
   Image dc(cam.width, cam.height, 3);
   std::mt19937 rng(3);
