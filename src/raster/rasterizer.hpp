@@ -36,10 +36,10 @@ struct RasterSettings {
   float near_plane = 0.01f;
   float low_pass = 0.3f;  // added to the 2D covariance diagonal (pixels^2)
   RasterKernel kernel = RasterKernel::kAuto;
-  // Colour and alpha only (playback, evaluation): no expected depth and none of the per-pixel
-  // state the backward pass needs, which the compositing then neither accumulates nor writes
-  // (depth, final_T, n_contrib and entry_cells come back empty; rasterize_backward refuses such
-  // a result).
+  // Colour and alpha only (playback, evaluation): none of the per-pixel state the backward pass
+  // needs, which the compositing then neither accumulates nor writes (final_T, n_contrib and
+  // entry_cells come back empty; rasterize_backward refuses such a result). The expected depth
+  // is `depth`'s choice, in either forward.
   bool image_only = false;
   // Also the expected depth (RasterResultT::depth, sum of w_i z_i); off, the compositing neither
   // accumulates nor writes it (nothing in training or playback reads it: in-process A/B on the

@@ -2,10 +2,11 @@
 // The rasterizer on an NVIDIA GPU (CUDA), beside the CPU one (raster/rasterizer.hpp), which stays
 // the reference: the same conventions (docs/rasterizer.md "Conventions": culling, the low-pass,
 // the exact alpha box, alpha = min(0.99, o G), the 1e-4 transmittance stop, depth order with
-// ties by id), the same outputs (colour, alpha, expected depth, radii, depths) and the same
-// gradients (means, log-scales, raw quaternions, opacity logits, SH coefficients, and the 2D
-// means' for density control). Compiled when CMake's KS_CUDA is on (nvcc present); without it
-// every entry point here says so (raster_cuda_compiled() is false, the constructor throws).
+// ties by id), the same outputs (colour, alpha, the expected depth on request, radii, depths)
+// and the same gradients (means, log-scales, raw quaternions, opacity logits, SH coefficients,
+// and the 2D means' for density control). Compiled when CMake's KS_CUDA is on (nvcc present);
+// without it every entry point here says so (raster_cuda_compiled() is false, the constructor
+// throws).
 //
 // The Gaussians and every intermediate stay on the device between calls: upload once, run the
 // forward / backward as often as needed, and download only what the caller reads (as training
