@@ -115,6 +115,8 @@ for t in $threads_list; do
     for m in forward forward+backward; do
       runs_of[ks $m]+="$(field "$m" "$kout")"$'\n'
       runs_of[os $m]+="$(field "$m" "$oout")"$'\n'
+      runs_of[ratio $m]+="$(awk -v a="$(field "$m" "$oout")" -v b="$(field "$m" "$kout")" \
+        'BEGIN {print a / b}')"$'\n'
     done
     echo "threads $t run $r: forward kinesplat $(field forward "$kout") ms, OpenSplat" \
       "$(field forward "$oout") ms; forward+backward kinesplat $(field forward+backward "$kout")" \
@@ -127,11 +129,14 @@ done
 
 echo
 echo "$gaussians Gaussians, ${size}x${size}, per step: median over $runs runs of the median of $steps steps"
-printf '%-8s %-18s %14s %14s %8s\n' threads pass "kinesplat ms" "OpenSplat ms" ratio
+echo "(ratio: of the two medians; run ratio: the median of each run's ratio, its two sides timed"
+echo "one after the other, which a machine whose speed drifts between runs moves less)"
+printf '%-8s %-18s %14s %14s %8s %10s\n' threads pass "kinesplat ms" "OpenSplat ms" ratio \
+  "run ratio"
 for t in $threads_list; do
   for m in forward forward+backward; do
     k=${med[$t ks $m]} o=${med[$t os $m]}
-    printf '%-8s %-18s %14.1f %14.1f %7.1fx\n' "$t" "$m" "$k" "$o" \
-      "$(awk -v a="$o" -v b="$k" 'BEGIN {print a / b}')"
+    printf '%-8s %-18s %14.1f %14.1f %7.1fx %9.1fx\n' "$t" "$m" "$k" "$o" \
+      "$(awk -v a="$o" -v b="$k" 'BEGIN {print a / b}')" "${med[$t ratio $m]}"
   done
 done
