@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <numeric>
 
 #include "animate/framing.hpp"
 #include "animate/posed_render.hpp"
@@ -77,7 +78,8 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
   if (o.cuda) gpu = std::make_unique<cuda::RasterizerCuda>();  // throws, saying why, without one
   RasterResult rr;
   Progress prog("animate", o.progress ? F : 0);
-  double render_s = 0;
+  std::vector<double> frame_ms;
+  frame_ms.reserve(size_t(F));
   std::vector<std::string> pngs;
   for (int f = 0; f < F; ++f) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -101,7 +103,8 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
     } else {
       renderer.render(motion.frames[f], cams[f], rs, rr, rep.culled ? &cull : nullptr);
     }
-    render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    frame_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     char name[32];
     std::snprintf(name, sizeof name, "%04d", f);
     pngs.push_back(staged.path(std::string(name) + ".png"));
@@ -121,7 +124,11 @@ PlaybackReport render_playback(const Avatar& avatar, const std::string& out,
   }
   rep.frames = F;
   rep.fps = motion.fps;
-  rep.render_ms = 1e3 * render_s / F;
+  rep.render_ms = std::accumulate(frame_ms.begin(), frame_ms.end(), 0.0) / F;
+  rep.render_max_ms = *std::max_element(frame_ms.begin(), frame_ms.end());
+  std::sort(frame_ms.begin(), frame_ms.end());
+  rep.render_median_ms = F % 2 ? frame_ms[size_t(F / 2)]
+                               : 0.5 * (frame_ms[size_t(F / 2) - 1] + frame_ms[size_t(F / 2)]);
   return rep;
 }
 

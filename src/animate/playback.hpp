@@ -27,8 +27,11 @@ struct PlaybackOptions {
 
 struct PlaybackReport {
   int frames = 0;
-  double fps = 0;        // the motion's
-  double render_ms = 0;  // pose + render per frame (mean)
+  double fps = 0;               // the motion's
+  double render_ms = 0;         // pose + render per frame (mean)
+  double render_median_ms = 0;  // ... the median frame's
+  double render_max_ms = 0;     // ... the slowest frame's (the first, which sizes the buffers,
+                                // as a rule)
   bool culled = false;
   std::string frames_dir;  // where the PNG (and .ply) frames are; empty when only the MP4 is kept
 };

@@ -57,9 +57,11 @@ void run_animate(const AnimateArgs& args) {
   }
   char cull_note[32] = "off";
   if (r.culled) std::snprintf(cull_note, sizeof cull_note, "at cos > %.2f", args.backface_cull);
-  std::printf("animate: pose + render %.1f ms per frame (%.1f fps), back-face culling %s%s\n",
-              r.render_ms, 1e3 / std::max(r.render_ms, 1e-9), cull_note,
-              o.cuda ? ", posed and rasterized on the GPU" : "");
+  std::printf(
+      "animate: pose + render %.1f ms per frame (%.1f fps; median %.1f ms, slowest %.1f ms), "
+      "back-face culling %s%s\n",
+      r.render_ms, 1e3 / std::max(r.render_ms, 1e-9), r.render_median_ms, r.render_max_ms,
+      cull_note, o.cuda ? ", posed and rasterized on the GPU" : "");
 }
 
 ks::cli::CommandGroup group(70, [](CLI::App& app) {

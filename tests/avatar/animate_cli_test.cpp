@@ -55,6 +55,27 @@ TEST(AnimateCli, WritesPngAndPlyFrames) {
   EXPECT_NE(r.output.find("wrote 3 frames"), std::string::npos) << r.output;
 }
 
+TEST(AnimateCli, ReportsMeanMedianAndSlowestFrame) {
+  TmpDir t("animate_times");
+  save_avatar(t / "a.ksavatar", test::tiny_avatar());
+  const CliRun r = run_cli("animate " + t / "a.ksavatar" +
+                           " --motion wave --frames 5 --size 24x32 --out " + t / "frames");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const size_t at = r.output.find("pose + render ");
+  ASSERT_NE(at, std::string::npos) << r.output;
+  double mean = -1, fps = -1, median = -1, slowest = -1;
+  ASSERT_EQ(std::sscanf(r.output.c_str() + at,
+                        "pose + render %lf ms per frame (%lf fps; median %lf ms, slowest %lf ms)",
+                        &mean, &fps, &median, &slowest),
+            4)
+      << r.output;
+  // Printed to 0.1 ms: the mean and the median lie within the frames' range.
+  EXPECT_GE(mean, 0);
+  EXPECT_GE(median, 0);
+  EXPECT_LE(mean, slowest + 0.05);
+  EXPECT_LE(median, slowest + 0.05);
+}
+
 TEST(AnimateCli, WritesMp4WhenFfmpegIsPresent) {
   if (std::system("command -v ffmpeg >/dev/null 2>&1") != 0) GTEST_SKIP() << "no ffmpeg";
   TmpDir t("animate_mp4");
