@@ -19,6 +19,7 @@
 #include <type_traits>
 
 #include "core/error.hpp"
+#include "core/simd.hpp"
 #include "raster/projection.hpp"
 #include "raster/rasterizer.hpp"
 
@@ -178,10 +179,13 @@ struct Simd<float, CW> {
   [[gnu::always_inline]] static void exp2_group(const V* x_in, V* out) {
     V x[K], y[K], r[K], r2[K], r4[K], p[K];
     const V lo = V{} - 126.0f;
-    for (int g = 0; g < K; ++g) x[g] = x_in[g] < lo ? lo : x_in[g];
-    // y holds round(x) in its low mantissa bits (1.5 * 2^23 has a unit last place).
-    for (int g = 0; g < K; ++g) y[g] = x[g] + 12582912.0f;
-    for (int g = 0; g < K; ++g) r[g] = x[g] - (y[g] - 12582912.0f);
+    for (int g = 0; g < K; ++g) x[g] = at_least(x_in[g], lo);
+    // y holds round(x) + 127 in its low mantissa bits (1.5 * 2^23 + 127 has a unit last
+    // place), so that y's bits shifted left by 23 are those of 2^round(x) (the exponent and
+    // leading mantissa bits of 1.5 * 2^23 shift out).
+    constexpr float kMagic = 12582912.0f + 127.0f;
+    for (int g = 0; g < K; ++g) y[g] = x[g] + kMagic;
+    for (int g = 0; g < K; ++g) r[g] = x[g] - (y[g] - kMagic);
     for (int g = 0; g < K; ++g) r2[g] = r[g] * r[g];
     for (int g = 0; g < K; ++g) r4[g] = r2[g] * r2[g];
     for (int g = 0; g < K; ++g) {
@@ -190,10 +194,7 @@ struct Simd<float, CW> {
               p45 = madd(r[g], V{} + 0.0013276472454890609f, V{} + 0.009675540961325169f);
       p[g] = madd(r4[g], p45, madd(r2[g], p23, p01));
     }
-    for (int g = 0; g < K; ++g) {
-      const I bits = ((I)y[g] << 23) + (127 << 23);
-      out[g] = p[g] * (V)bits;
-    }
+    for (int g = 0; g < K; ++g) out[g] = p[g] * (V)((I)y[g] << 23);
   }
   // minps: a < b ? a : b, lane by lane (one instruction; GCC does not turn the vector
   // ternary into it). The same bits as the ternary, NaN lanes too.
@@ -209,6 +210,22 @@ struct Simd<float, CW> {
     }
 #endif
     return a < b ? a : b;
+  }
+  // maxps: x < lo ? lo : x, lane by lane (one instruction instead of a comparison and a
+  // blend; lo as the first operand, so that a NaN lane of x stays x: the same bits as the
+  // ternary).
+  [[gnu::always_inline]] static V at_least(const V& x, const V& lo) {
+#if defined(__SSE2__)
+    if constexpr (CW == 4) return (V)_mm_max_ps((__m128)lo, (__m128)x);
+#endif
+#if defined(__x86_64__)
+    if constexpr (CW == 8) {
+      V r;
+      asm("vmaxps %2, %1, %0" : "=v"(r) : "v"(lo), "vm"(x));
+      return r;
+    }
+#endif
+    return x < lo ? lo : x;
   }
   // Whether any lane of a comparison mask is set.
   [[gnu::always_inline]] static bool any(const I& m) {
@@ -316,9 +333,11 @@ template <int K, class V, class T>
                                                      const V* rows, V* dx, V* dy, V* pw) {
   for (int g = 0; g < K; ++g) dx[g] = mx[g] - cols[g];
   for (int g = 0; g < K; ++g) dy[g] = my[g] - rows[g];
-  for (int g = 0; g < K; ++g) pw[g] = ha[g] * dx[g] * dx[g];
+  // (ha dx + hb dy) dx + hc dy dy: five operations.
+  V t[K];
+  for (int g = 0; g < K; ++g) t[g] = madd(splat<V>(hb[g]), dy[g], ha[g] * dx[g]);
+  for (int g = 0; g < K; ++g) pw[g] = t[g] * dx[g];
   for (int g = 0; g < K; ++g) pw[g] = madd(hc[g] * dy[g], dy[g], pw[g]);
-  for (int g = 0; g < K; ++g) pw[g] = madd(hb[g] * dy[g], dx[g], pw[g]);
 }
 
 // A visible Gaussian's tiles (RasterResultT::tile_rects) as two words, tx0 | tx1 << 16 and

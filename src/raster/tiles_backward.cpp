@@ -199,7 +199,7 @@ template <int BW, int BH, class T, class Res, class Img>
         for (int g = 0; g < K; ++g) {
           const int p0 = bl[g] * N;
           const V og = o * Gv[g];
-          const V al = og < T(0.99) ? og : V{} + T(0.99);
+          const V al = SV::min(og, V{} + T(0.99));
           const VI ok = (SI(j) < vload<VI>(last + p0)) & (pw[g] <= T(0)) & (al >= T(1.0f / 255.0f));
           any |= ok;
           const V om = T(1) - al;

@@ -248,10 +248,10 @@ template <int BW, int BH, bool kFull, bool kDepth, class T, class Res>
           const V Tn = Tp * (T(1) - al[k]);
           const VI con = kFull ? in[k] & ~(Tn < T(1e-4)) : Tn >= T(1e-4);
           const V w = con ? al[k] * Tp : V{};
-          c0 = madd(w, V{} + gr[j], c0);
-          c1 = madd(w, V{} + gg[j], c1);
-          c2 = madd(w, V{} + gbl[j], c2);
-          if constexpr (kDepth) dp = madd(w, V{} + gz[j], dp);
+          c0 = madd(w, splat<V>(gr[j]), c0);
+          c1 = madd(w, splat<V>(gg[j]), c1);
+          c2 = madd(w, splat<V>(gbl[j]), c2);
+          if constexpr (kDepth) dp = madd(w, splat<V>(gz[j]), dp);
           Tb = con ? Tn : (V)((VI)Tp | (kFull ? in[k] & sign : sign));
           if constexpr (kFull) {
             lb = (con & SI(gidx[j])) | (~con & lb);

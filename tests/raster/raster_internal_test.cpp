@@ -78,6 +78,14 @@ TEST(RasterInternal, MinIsTheTernaryBitForBit) {
   for (int l = 0; l < 4; ++l) EXPECT_EQ(std::memcmp(&m[l], &t[l], 4), 0) << l;
 }
 
+TEST(RasterInternal, AtLeastIsTheTernaryBitForBit) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const V x = {-200.f, 3.f, nan, -0.f}, lo = {-126.f, -126.f, -126.f, 0.f};
+  const V m = SV::at_least(x, lo);
+  const V t = x < lo ? lo : x;
+  for (int l = 0; l < 4; ++l) EXPECT_EQ(std::memcmp(&m[l], &t[l], 4), 0) << l;
+}
+
 template <int BW, int BH>
 void expect_entry_blocks_match_the_box() {
   // Every pixel box that meets tile (1, 2) of a 64 x 64 image, clipped to the image as the
