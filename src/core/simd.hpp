@@ -14,15 +14,6 @@
 
 namespace ks {
 
-// A scalar in every lane of a vector-extension type V, by one broadcast: s - 0 is s for every s
-// (-0 too), so the compiler drops the subtraction (and can fold the broadcast into an
-// arithmetic instruction's memory operand); it cannot for V{} + s (-0 + 0 is +0), where it adds
-// and then broadcasts the sum from a register.
-template <class V, class T>
-[[gnu::always_inline]] inline V splat(T s) {
-  return s - V{};
-}
-
 template <int CW>
 struct FloatLanes;
 
@@ -42,7 +33,7 @@ struct Lanes {
   using V = typename FloatLanes<CW>::V;
   using I = typename FloatLanes<CW>::I;
   static constexpr int kWidth = CW;
-  [[gnu::always_inline]] static V splat(float x) { return ks::splat<V>(x); }
+  [[gnu::always_inline]] static V splat(float x) { return V{} + x; }
   [[gnu::always_inline]] static V sel(I m, V a, V b) { return m ? a : b; }
   [[gnu::always_inline]] static V max(V a, V b) { return a > b ? a : b; }
   [[gnu::always_inline]] static V min(V a, V b) { return a < b ? a : b; }

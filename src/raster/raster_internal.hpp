@@ -19,7 +19,6 @@
 #include <type_traits>
 
 #include "core/error.hpp"
-#include "core/simd.hpp"
 #include "raster/projection.hpp"
 #include "raster/rasterizer.hpp"
 
@@ -128,6 +127,23 @@ template <class V>
     return __builtin_ia32_vfmaddps256(a, b, c);
 #endif
   return a * b + c;
+}
+
+// A scalar in every lane: one vbroadcastss, from memory where s is there, in the AVX2 and
+// AVX-512 kernels (8 float lanes, which only they instantiate, as madd); elsewhere s - 0, which
+// the compiler folds into a broadcast (V{} + s it cannot: -0 + 0 is +0, so it adds first; and in
+// functions compiled for AVX2 by target attribute GCC 12 builds s - 0 lane by lane, with four
+// inserts and a 128-bit insert).
+template <class V, class T>
+[[gnu::always_inline]] inline V splat(const T& s) {
+#if defined(__x86_64__)
+  if constexpr (std::is_same_v<V, typename VecTypes<float, 8>::V>) {
+    V r;
+    asm("vbroadcastss %1, %0" : "=v"(r) : "vm"(s));
+    return r;
+  }
+#endif
+  return s - V{};
 }
 
 template <class T, int CW>

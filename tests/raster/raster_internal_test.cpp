@@ -144,6 +144,32 @@ TEST(RasterInternal, MaddFusesOnEightLanesOnly) {
   EXPECT_GT(differ, 0);
 }
 
+// splat on 8 lanes as the AVX2 and AVX-512 kernels compile it: from memory and from a register.
+__attribute__((target("avx2,fma"), noinline)) void splat8(const float* s, float* from_memory,
+                                                          float* from_register) {
+  const V8 m = splat<V8>(s[0]);
+  const float t = s[0] * s[1];
+  const V8 r = splat<V8>(t);
+  std::memcpy(from_memory, &m, sizeof m), std::memcpy(from_register, &r, sizeof r);
+}
+
+// The scalar in every lane, bit for bit (-0 and NaN too), on 4 lanes and on 8.
+TEST(RasterInternal, SplatPutsTheScalarInEveryLane) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (const float x : {1.5f, -0.f, 0.f, -3e-39f, nan}) {
+    const V v = splat<V>(x);
+    for (int l = 0; l < 4; ++l) EXPECT_EQ(std::memcmp(&v[l], &x, 4), 0) << x << " lane " << l;
+    if (!raster_avx2_available()) continue;
+    const float s[2] = {x, 1.f};
+    float m[8], r[8];
+    splat8(s, m, r);
+    for (int l = 0; l < 8; ++l) {
+      EXPECT_EQ(std::memcmp(&m[l], &x, 4), 0) << x << " lane " << l;
+      EXPECT_EQ(std::memcmp(&r[l], &x, 4), 0) << x << " lane " << l;
+    }
+  }
+}
+
 TEST(RasterInternal, EntryBlocksAreTheBoxsBlocks) {
   expect_entry_blocks_match_the_box<4, 2>();
   expect_entry_blocks_match_the_box<4, 1>();
