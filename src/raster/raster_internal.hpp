@@ -212,36 +212,35 @@ struct Simd<float, CW> {
     }
     for (int g = 0; g < K; ++g) out[g] = p[g] * (V)((I)y[g] << 23);
   }
-  // minps: a < b ? a : b, lane by lane (one instruction; GCC does not turn the vector
-  // ternary into it). The same bits as the ternary, NaN lanes too.
-  [[gnu::always_inline]] static V min(const V& a, const V& b) {
+  // a < b ? a : b (minps) or, kMax, a > b ? a : b (maxps), lane by lane: one instruction, which
+  // GCC does not make of the vector ternary. Where a lane is NaN (or both are zeros) the
+  // instructions give b, the second operand, as the ternaries do: the same bits.
+  template <bool kMax>
+  [[gnu::always_inline]] static V pick(const V& a, const V& b) {
 #if defined(__SSE2__)
-    if constexpr (CW == 4) return (V)_mm_min_ps((__m128)a, (__m128)b);
+    if constexpr (CW == 4)
+      return kMax ? (V)_mm_max_ps((__m128)a, (__m128)b) : (V)_mm_min_ps((__m128)a, (__m128)b);
 #endif
 #if defined(__x86_64__)
     if constexpr (CW == 8) {
       V r;
-      asm("vminps %2, %1, %0" : "=v"(r) : "v"(a), "vm"(b));
+      if constexpr (kMax)
+        asm("vmaxps %2, %1, %0" : "=v"(r) : "v"(a), "vm"(b));
+      else
+        asm("vminps %2, %1, %0" : "=v"(r) : "v"(a), "vm"(b));
       return r;
     }
 #endif
+    if constexpr (kMax) return a > b ? a : b;
     return a < b ? a : b;
   }
-  // maxps: x < lo ? lo : x, lane by lane (one instruction instead of a comparison and a
-  // blend; lo as the first operand, so that a NaN lane of x stays x: the same bits as the
-  // ternary).
+  // a < b ? a : b.
+  [[gnu::always_inline]] static V min(const V& a, const V& b) {
+    return pick<false>(a, b);
+  }
+  // x < lo ? lo : x, i.e. lo > x ? lo : x (a NaN lane of x stays x).
   [[gnu::always_inline]] static V at_least(const V& x, const V& lo) {
-#if defined(__SSE2__)
-    if constexpr (CW == 4) return (V)_mm_max_ps((__m128)lo, (__m128)x);
-#endif
-#if defined(__x86_64__)
-    if constexpr (CW == 8) {
-      V r;
-      asm("vmaxps %2, %1, %0" : "=v"(r) : "v"(lo), "vm"(x));
-      return r;
-    }
-#endif
-    return x < lo ? lo : x;
+    return pick<true>(lo, x);
   }
   // Whether any lane of a comparison mask is set.
   [[gnu::always_inline]] static bool any(const I& m) {
