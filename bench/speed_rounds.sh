@@ -11,6 +11,12 @@
 # AVATAR `kinesplat animate AVATAR --out TMP --frames 60` (512 x 768, pose + render per frame,
 # the mean of 60 frames, as `animate` reports it). Not part of `make test` or CI.
 #
+# The machine's state: `bench raster` times a fixed arithmetic load (no memory traffic) before
+# and after its figures ("machine speed probe"); a round's probe is the larger of the two. A
+# shared host's neighbours slow the probe and every figure alike, so besides the figures over
+# all rounds the summary gives them over the rounds whose probe is within 10 % of the fastest
+# round's (the machine at its usual speed: an idle machine, as the issue's figures assume).
+#
 # Environment: KINESPLAT (default build/kinesplat), ROUNDS (10), KS_LOCK (a file: each timed
 # command holds `flock KS_LOCK`, so that other jobs that take it do not run beside it), TMPDIR.
 set -euo pipefail
@@ -26,14 +32,20 @@ trap 'rm -rf "$work"' EXIT
 run() { if [ -n "${KS_LOCK:-}" ]; then flock "$KS_LOCK" "$@"; else "$@"; fi; }
 field() { sed -n "s/^$1: median \([0-9.]*\) ms.*/\1/p" "$2"; }
 
-: >"$work/figures"  # lines: NAME MS
+: >"$work/figures"  # lines: NAME MS ROUND
+: >"$work/probes"   # lines: ROUND PROBE_MS
 for r in $(seq "$rounds"); do
   run "$ks" bench raster --backward --frames 20 >"$work/bench.txt"
   fwd=$(field forward "$work/bench.txt")
   img=$(sed -n 's/^forward, image only (playback): median \([0-9.]*\) ms.*/\1/p' "$work/bench.txt")
   fb=$(field forward+backward "$work/bench.txt")
-  line="round $r: forward $fwd ms, image only $img ms, forward + backward $fb ms"
-  printf 'forward %s\nimage-only %s\nforward+backward %s\n' "$fwd" "$img" "$fb" >>"$work/figures"
+  probe=$(sed -n 's/^machine speed probe: \([0-9.]*\) ms before, \([0-9.]*\) ms after.*/\1 \2/p' \
+    "$work/bench.txt" | awk '{print ($1 > $2 ? $1 : $2)}')
+  [ -n "$probe" ] || { echo "error: bench raster printed no machine speed probe" >&2; exit 1; }
+  echo "$r $probe" >>"$work/probes"
+  line="round $r: probe $probe ms, forward $fwd ms, image only $img ms, forward + backward $fb ms"
+  printf 'forward %s %s\nimage-only %s %s\nforward+backward %s %s\n' "$fwd" "$r" "$img" "$r" \
+    "$fb" "$r" >>"$work/figures"
   i=0
   for a in "$@"; do
     i=$((i + 1))
@@ -42,16 +54,18 @@ for r in $(seq "$rounds"); do
       { cat "$work/animate.txt" >&2; exit 1; }
     ms=$(sed -n 's/.*pose + render \([0-9.]*\) ms per frame.*/\1/p' "$work/animate.txt")
     [ -n "$ms" ] || { echo "error: animate $a reported no frame time" >&2; exit 1; }
-    echo "playback-$i $ms" >>"$work/figures"
+    echo "playback-$i $ms $r" >>"$work/figures"
     line+=", $(basename "$a") $ms ms"
   done
   echo "$line"
 done
 
-# Per figure: median, quartiles, range, and the rounds at or under the bar (ms).
+# Per figure: median, quartiles, range, and the rounds at or under the bar (ms); over the rounds
+# listed in the file $4 (all when it is absent).
 summary() {
-  local name=$1 bar=$2 label=$3
-  awk -v n="$name" '$1 == n {print $2}' "$work/figures" | sort -g | awk -v bar="$bar" \
+  local name=$1 bar=$2 label=$3 keep=${4:-}
+  awk -v n="$name" -v keep="$keep" 'BEGIN {if (keep != "") while ((getline k < keep) > 0) ok[k] = 1}
+    $1 == n && (keep == "" || ($3 in ok)) {print $2}' "$work/figures" | sort -g | awk -v bar="$bar" \
     -v label="$label" '{v[NR] = $1; met += ($1 <= bar)} END {
       med = NR % 2 ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2
       q1 = v[int((NR + 3) / 4)]; q3 = v[int((3 * NR + 3) / 4)]
@@ -60,11 +74,24 @@ summary() {
 }
 echo
 echo "$rounds rounds ($(nproc) CPUs, $(sed -n 's/.*kernel \([a-z0-9]*\).*/\1/p' "$work/bench.txt") kernel); issue 17's bars: forward 70 FPS, forward + backward 35 ms, playback 60 FPS"
-summary forward 14.2857 "forward (110K, 512x768)"
-summary image-only 14.2857 "forward, image only (playback's)"
-summary forward+backward 35 "forward + backward"
-i=0
-for a in "$@"; do
-  i=$((i + 1))
-  summary "playback-$i" 16.6667 "playback $(basename "$a")"
-done
+summaries() {
+  summary forward 14.2857 "forward (110K, 512x768)" "${1:-}"
+  summary image-only 14.2857 "forward, image only (playback's)" "${1:-}"
+  summary forward+backward 35 "forward + backward" "${1:-}"
+  local i=0 a
+  for a in "${avatars[@]}"; do
+    i=$((i + 1))
+    summary "playback-$i" 16.6667 "playback $(basename "$a")" "${1:-}"
+  done
+}
+avatars=("$@")
+echo "all rounds:"
+summaries
+# The rounds at the machine's usual speed: probe within 10 % of the fastest round's.
+fastest=$(awk '{print $2}' "$work/probes" | sort -g | head -1)
+awk -v f="$fastest" '$2 <= 1.1 * f {print $1}' "$work/probes" >"$work/usual"
+echo
+echo "machine speed probe over the rounds: fastest $fastest ms, slowest $(awk '{print $2}' \
+  "$work/probes" | sort -g | tail -1) ms; $(wc -l <"$work/usual") of $rounds rounds within 10 % of \
+the fastest (the machine at its usual speed):"
+summaries "$work/usual"

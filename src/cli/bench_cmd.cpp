@@ -12,6 +12,7 @@
 
 #include "cli/registry.hpp"
 #include "core/error.hpp"
+#include "core/speed_probe.hpp"
 #include "gaussians/ply.hpp"
 #include "raster/avatar_cloud.hpp"
 #include "raster/rasterizer.hpp"
@@ -22,7 +23,7 @@ namespace {
 struct Opts {
   size_t gaussians = 110000;
   int width = 512, height = 768, frames = 10, threads = 0;
-  bool backward = false;
+  bool backward = false, probe = true;
   std::string ply, camera, save_ply, save_camera, kernel = "auto", device = "cpu";
 };
 
@@ -179,6 +180,9 @@ void run(const Opts& o) {
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
   };
+  // The machine's state before and after the timings (a shared host's neighbours and clock
+  // changes slow every figure alike; bench/speed_rounds.sh sorts its rounds by this).
+  const ks::SpeedProbe probe0 = o.probe ? ks::speed_probe() : ks::SpeedProbe{};
   Timings t;
   const double cpu0 = cpu_ms();
   for (int f = 0; f < o.frames; ++f) {
@@ -214,6 +218,13 @@ void run(const Opts& o) {
       "%s\n",
       g.size(), visible, cam.width, cam.height, omp_get_max_threads(), r.point_list.size(),
       coverage, kernel);
+  if (o.probe) {
+    const ks::SpeedProbe probe1 = ks::speed_probe();
+    std::printf(
+        "machine speed probe: %.2f ms before, %.2f ms after (a fixed arithmetic load on %d "
+        "threads, no memory traffic; larger = the machine slower)\n",
+        probe0.ms, probe1.ms, probe1.threads);
+  }
   t.fwd_note = note(" (CPU time %.1f ms/frame)", cpu_fwd);
   if (o.backward) t.both_note = note(" (CPU time %.1f ms/frame)", cpu_both);
   print_timings(t, o.frames);
@@ -231,6 +242,9 @@ ks::cli::CommandGroup group(900, [](CLI::App& app) {
   sub->add_flag("--backward", o->backward, "also time forward + backward");
   sub->add_option("--frames", o->frames, "timed frames (median reported)")->capture_default_str();
   sub->add_option("--threads", o->threads, "OpenMP threads (0 = default)");
+  sub->add_flag("!--no-probe", o->probe,
+                "skip the machine speed probe (CPU: a fixed arithmetic load timed before and "
+                "after, about 0.1 s each, printed beside the figures)");
   sub->add_option("--kernel", o->kernel,
                   "tile kernel: auto (AVX-512 where the CPU has it, else AVX2 where it has that, "
                   "else baseline), baseline, avx2 or avx512 (an error where the CPU lacks it)")

@@ -100,6 +100,13 @@ TEST(RenderCli, BenchRasterPrintsSummary) {
   EXPECT_NE(r.out.find("forward+backward"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find(std::string("kernel ") + raster_kernel_name({})), std::string::npos)
       << r.out;
+  // The machine's state beside the figures (bench/speed_rounds.sh reads this line), unless
+  // --no-probe.
+  EXPECT_NE(r.out.find("machine speed probe: "), std::string::npos) << r.out;
+  const CliRun q =
+      run_cli("bench raster --gaussians 500 --width 32 --height 48 --frames 1 --no-probe");
+  ASSERT_EQ(q.status, 0) << q.err;
+  EXPECT_EQ(q.out.find("machine speed probe"), std::string::npos) << q.out;
 }
 
 // --kernel picks the tile kernel (named in the summary); an unknown one, or one the CPU lacks, is
