@@ -15,7 +15,7 @@
 # and after its figures ("machine speed probe"); a round's probe is the larger of the two. A
 # shared host's neighbours slow the probe and every figure alike, so besides the figures over
 # all rounds the summary gives them over the rounds whose probe is within 10 % of the fastest
-# round's (the machine at its usual speed: an idle machine, as the issue's figures assume).
+# round's (the machine at its full speed, as on the idle machine the issue's figures assume).
 #
 # Environment: KINESPLAT (default build/kinesplat), ROUNDS (10), KS_LOCK (a file: each timed
 # command holds `flock KS_LOCK`, so that other jobs that take it do not run beside it), TMPDIR.
@@ -87,11 +87,11 @@ summaries() {
 avatars=("$@")
 echo "all rounds:"
 summaries
-# The rounds at the machine's usual speed: probe within 10 % of the fastest round's.
+# The rounds at the machine's full speed: probe within 10 % of the fastest round's.
 fastest=$(awk '{print $2}' "$work/probes" | sort -g | head -1)
-awk -v f="$fastest" '$2 <= 1.1 * f {print $1}' "$work/probes" >"$work/usual"
+awk -v f="$fastest" '$2 <= 1.1 * f {print $1}' "$work/probes" >"$work/full"
 echo
 echo "machine speed probe over the rounds: fastest $fastest ms, slowest $(awk '{print $2}' \
-  "$work/probes" | sort -g | tail -1) ms; $(wc -l <"$work/usual") of $rounds rounds within 10 % of \
-the fastest (the machine at its usual speed):"
-summaries "$work/usual"
+  "$work/probes" | sort -g | tail -1) ms; $(wc -l <"$work/full") of $rounds rounds within 10 % of \
+the fastest (the machine at its full speed):"
+summaries "$work/full"
