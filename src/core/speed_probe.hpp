@@ -17,8 +17,8 @@ struct SpeedProbe {
 // `reps` repetitions of `iterations` steps on each thread; the median repetition's time.
 SpeedProbe speed_probe(int64_t iterations = 4000000, int reps = 5);
 
-// The load's result for one thread, computed in scalar double arithmetic step for step in float
-// (what speed_probe's checksum must equal per thread).
+// The load's result for one thread, computed step by step in scalar float arithmetic (what
+// speed_probe's checksum must equal per thread).
 double speed_probe_reference(int64_t iterations);
 
 }  // namespace ks

@@ -14,8 +14,8 @@ TEST(SpeedProbe, EveryThreadDoesTheLoadItTimes) {
   EXPECT_GT(p.ms, 0.0);
   EXPECT_TRUE(std::isfinite(p.ms));
   const double one = ks::speed_probe_reference(iterations);
-  EXPECT_GT(one,
-            12.0);  // each of the 12 chains starts at or above 1 and stays there (fixed point 1)
+  // Each of the 12 chains starts at or above 1 and stays there (its fixed point is 1).
+  EXPECT_GT(one, 12.0);
   EXPECT_NEAR(p.checksum, p.threads * one, 1e-5 * p.threads * one);
 }
 
