@@ -5,7 +5,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <utility>
 #include <vector>
+
+#include "core/math.hpp"
 
 namespace ks {
 
@@ -71,8 +74,7 @@ SpeedProbe speed_probe(int64_t iterations, int reps) {
     p.checksum = sum;
     p.threads = threads;
   }
-  std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
-  p.ms = times[times.size() / 2];
+  p.ms = median(std::move(times));
   return p;
 }
 

@@ -9,12 +9,12 @@
 namespace ks {
 
 struct SpeedProbe {
-  double ms = 0;        // the median repetition's wall time
+  double ms = 0;        // the repetitions' median wall time
   int threads = 0;      // threads that ran the load at once
   double checksum = 0;  // the load's result (the same on every run: proof the work was done)
 };
 
-// `reps` repetitions of `iterations` steps on each thread; the median repetition's time.
+// `reps` repetitions of `iterations` steps on each thread; their median time (ks::median).
 SpeedProbe speed_probe(int64_t iterations = 4000000, int reps = 5);
 
 // The load's result for one thread, computed step by step in scalar float arithmetic (what
