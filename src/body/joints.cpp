@@ -10,6 +10,12 @@ const std::vector<int>& smpl_parents() {
   return p;
 }
 
+int first_child(const std::vector<int>& parents, int j) {
+  for (size_t c = 0; c < parents.size(); ++c)
+    if (parents[c] == j) return int(c);
+  return -1;
+}
+
 int find_joint(const std::vector<std::string>& names, std::string_view name) {
   for (size_t i = 0; i < names.size(); ++i)
     if (names[i] == name) return int(i);

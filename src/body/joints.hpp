@@ -40,6 +40,9 @@ enum : int {
 // Parents of SMPL's 24-joint skeleton (the default model's too).
 const std::vector<int>& smpl_parents();
 
+// The first child of joint j (the lowest-numbered joint whose parent is j), or -1 for a leaf.
+int first_child(const std::vector<int>& parents, int j);
+
 // The index of the joint called `name` in `names`, or -1.
 int find_joint(const std::vector<std::string>& names, std::string_view name);
 // The same, throwing ks::Error ("<what>: the body model has no joint named '<name>'") if absent.

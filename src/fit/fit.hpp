@@ -18,6 +18,7 @@
 #include <array>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "body/body_model.hpp"
 #include "body/keypoints.hpp"
@@ -25,6 +26,35 @@
 #include "core/image.hpp"
 
 namespace ks {
+
+// One stage of the fit's schedule: a Levenberg-Marquardt solve over the parameter blocks it frees,
+// with the terms it switches on. Keypoints, the upright term and (with free_pose) the joint limits
+// and the arms-out-of-the-torso term are on in every stage that frees what they act on.
+struct FitStage {
+  enum class Kind {
+    kSolve,       // one solve (`rounds` of them with the silhouette)
+    kDepthFlips,  // each limb (and pair) mirrored in depth, solved with this stage's terms, kept
+                  // where the cost falls below the previous stage's
+  };
+  std::string name;
+  Kind kind = Kind::kSolve;
+  bool free_orient = true, free_pose = false, free_betas = false, free_cam = true;
+  bool torso_only = false;  // keypoints of the torso only (neck, shoulders, hips); no upright term
+  double prior_scale = 0;   // the stance prior's weight in units of FitOptions::w_pose_prior
+  bool silhouette = false;  // the silhouette terms, where there is a mask
+  int rounds = 1;           // with the silhouette: solves, the correspondences renewed before each
+};
+
+// The schedule: `per_start` runs from each standing start (facing the camera and turned away), the
+// lower final cost decides (an early stage's strong prior can favour the wrong one); `refine` then
+// runs from the winner. The last stage's per-term costs are the fit's `costs`.
+struct FitSchedule {
+  std::vector<FitStage> per_start, refine;
+};
+
+// Torso (camera and orientation from the torso's keypoints); pose with the stance prior at 10x, 3x
+// and 1x; depth flips; then pose + shape + silhouette (3 correspondence rounds). docs/fit.md.
+FitSchedule default_fit_schedule();
 
 struct FitOptions {
   // Camera: focal length in pixels; <= 0: from the field of view across the image's long side.
@@ -41,8 +71,8 @@ struct FitOptions {
   double w_face = 0.3;           // nose, eyes, ears (relative)
   double w_feet = 0.5;           // toes and heels (relative)
   // Closeness to the natural stance (standing, arms lowered by `stance_arm_down_degrees` from the
-  // T-pose), per joint a Gaussian on the bone's swing and twist with everyday deviations; the
-  // weight of the final stage (earlier stages use 10x and 3x).
+  // T-pose), per joint a Gaussian on the bone's swing and twist with everyday deviations; each
+  // stage scales it by its prior_scale.
   double w_pose_prior = 4.0;
   double stance_arm_down_degrees = 70.0;
   double w_limits = 20.0;  // joint-angle limits
@@ -59,11 +89,10 @@ struct FitOptions {
   double w_sil_cover = 0.3;           // mask outline away from the body's
   double clothing_allowance = 0.015;  // metres: the mask may stand this far off the body
   double cover_robust = 1.0;          // Cauchy scale of the cover term, % of height
-  bool depth_flips = true;     // try each limb mirrored in depth (the other answer a photo allows)
-  int icp_rounds = 3;          // silhouette correspondence rounds in the shape stage
-  int max_iterations = 60;     // per solve
-  bool use_silhouette = true;  // (needs a mask)
+  int max_iterations = 60;            // per solve
+  bool use_silhouette = true;         // (needs a mask)
   bool progress = false;
+  FitSchedule schedule = default_fit_schedule();
 };
 
 inline std::array<Eigen::Vector3d, kBody25Count> absent_keypoints() {
@@ -92,8 +121,12 @@ struct FitResult {
 // shoulders and both hips), or the mask's size differs from the image's.
 FitResult fit_body(const BodyModel& model, const FitInput& input, const FitOptions& options = {});
 
-// The camera the fit uses for an image (focal from the options, principal point at the centre,
-// rotation fixed), with translation t.
+// The focal length (pixels) the fit uses for an image: options.focal, or from the field of view
+// across the image's long side.
+double fit_focal(const FitOptions& options, int width, int height);
+
+// The camera the fit uses for an image (focal from fit_focal, principal point at the centre,
+// rotation fit_body.hpp's camera_rotation), with translation t.
 Camera fit_camera(const FitOptions& options, int width, int height, const Eigen::Vector3d& t);
 
 }  // namespace ks

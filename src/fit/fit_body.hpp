@@ -49,6 +49,13 @@ inline Eigen::Matrix3d camera_rotation() {
   return Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal();
 }
 
+// camera_rotation() * X + t: a world point in the camera's frame, the rotation applied as the
+// sign flips it is (T = double or ceres::Jet).
+template <class T>
+Eigen::Matrix<T, 3, 1> to_camera(const Eigen::Matrix<T, 3, 1>& X, const Eigen::Matrix<T, 3, 1>& t) {
+  return Eigen::Matrix<T, 3, 1>(X(0) + t(0), -X(1) + t(1), -X(2) + t(2));
+}
+
 // Builds the data for `model`: `num_betas` shape coefficients (at most the model's), every
 // `vertex_stride`-th vertex as a silhouette sample, plus the BODY_25 surface vertices.
 BodyData make_body_data(const BodyModel& model, int num_betas, int vertex_stride,

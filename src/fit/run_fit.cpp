@@ -26,8 +26,7 @@ FitResult run_fit(const std::string& subject_dir, const FitStageOptions& options
   }
   save_fit((dir / "fit.json").string(), model_name, r,
            {{"silhouette", options.fit.use_silhouette && !in.mask.empty()},
-            {"keypoint_convention",
-             options.fit.keypoints == KeypointConvention::kJoints ? "joints" : "coco"}});
+            {"keypoint_convention", to_string(options.fit.keypoints)}});
   return r;
 }
 
