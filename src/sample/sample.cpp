@@ -19,6 +19,7 @@
 #include "io/video.hpp"
 #include "meshrender/meshrender.hpp"
 #include "motion/amass.hpp"
+#include "sample/driving_body.hpp"
 
 namespace ks {
 
@@ -203,80 +204,78 @@ Camera resize_camera(const Camera& cam, int width, int height) {
   return c;
 }
 
-PoseSequence run_sample(const std::string& subject_dir, const std::string& prior_dir,
-                        const SampleOptions& opt) {
-  const bool talk = opt.progress;
-  // ---- Everything is checked before anything is written.
+namespace {
+
+// run_sample's inputs, read and checked.
+struct SampleInputs {
+  SubjectFit fit;
+  DrivingMotion dm;
+  Camera camera;                  // the fit's, resized to the options' size
+  std::vector<BodyParams> poses;  // the motion on the fitted subject
+  SkeletonSources sources;        // the subject's skeleton
+};
+
+void check_sample_options(const std::string& prior_dir, const SampleOptions& opt) {
   if (opt.frames < 1) throw Error("--frames must be at least 1, got " + std::to_string(opt.frames));
   if (opt.supersample < 1 || opt.supersample > 8)
     throw Error("supersample must lie in 1..8, got " + std::to_string(opt.supersample));
   if (prior_dir.empty()) throw Error("no output folder given");
+}
+
+SubjectFit load_subject_fit(const std::string& subject_dir) {
   if (!fs::is_directory(subject_dir)) throw Error(subject_dir + ": not a directory");
   const std::string fit_path = (fs::path(subject_dir) / "fit.json").string();
   if (!fs::exists(fit_path))
     throw Error(fit_path + ": missing (run `kinesplat fit " + subject_dir + "` first)");
-  const SubjectFit fit = load_fit(fit_path);
+  SubjectFit fit = load_fit(fit_path);
   const BodyModel& model = *fit.model;
   if (model.part_labels.size() != size_t(model.num_vertices()))
     throw Error(fit_path + ": the " + std::string(model.kind_name()) +
                 " body model has no per-vertex part labels");
-  const DrivingMotion dm = load_driving_motion(opt.motion, opt.frames);
-  if (int(dm.motion.frames.size()) < opt.frames)
-    note(talk, "the motion has " + std::to_string(dm.motion.frames.size()) +
-                   " frames, fewer than --frames " + std::to_string(opt.frames) +
-                   ": using them all");
-  const Camera camera = (opt.width > 0 || opt.height > 0)
-                            ? resize_camera(fit.camera, opt.width, opt.height)
-                            : fit.camera;
-  const std::vector<BodyParams> poses = compose_motion(fit, dm.motion, opt.in_place);
-  const int N = int(poses.size());
-  const SkeletonSources sources = skeleton_sources(model);
+  return fit;
+}
 
-  // The driving body (SVAD's pose alignment), if any.
-  std::shared_ptr<const BodyModel> driving;
-  std::string driving_name;
-  if (!opt.driving_body.empty()) {
-    driving_name = opt.driving_body;
-    if (opt.driving_body == "default")
-      driving = std::shared_ptr<const BodyModel>(&default_body_model(), [](const BodyModel*) {});
-    else
-      driving = std::make_shared<const BodyModel>(load_body_model(opt.driving_body));
-  } else if (dm.betas && model.kind != BodyKind::kDefault) {
-    driving = fit.model;
-    driving_name = fit.body_model;
-  } else if (dm.betas) {
-    note(talk,
-         "the motion file carries its performer's betas, but the fit uses the default body "
-         "model (another shape space): drawing the subject's own skeleton (give --driving-body "
-         "MODEL to align the performer's skeleton instead)");
-  }
-  Eigen::VectorXd driving_betas;
-  std::optional<SkeletonSources> driving_sources;
-  if (driving) {
-    driving_betas = dm.betas ? *dm.betas : Eigen::VectorXd::Zero(0);
-    if (driving_betas.size() > driving->num_betas) {
-      note(talk, "the motion's " + std::to_string(driving_betas.size()) + " betas cut to the " +
-                     std::to_string(driving->num_betas) + " of the driving body model");
-      driving_betas.conservativeResize(driving->num_betas);
-    }
-    driving_sources = skeleton_sources(*driving);
-  }
-  if (opt.video && find_ffmpeg().empty())
+SampleInputs read_sample_inputs(const std::string& subject_dir, const SampleOptions& opt,
+                                const SampleNote& note) {
+  SampleInputs in;
+  in.fit = load_subject_fit(subject_dir);
+  in.dm = load_driving_motion(opt.motion, opt.frames);
+  if (int(in.dm.motion.frames.size()) < opt.frames)
+    note("the motion has " + std::to_string(in.dm.motion.frames.size()) +
+         " frames, fewer than --frames " + std::to_string(opt.frames) + ": using them all");
+  in.camera = (opt.width > 0 || opt.height > 0)
+                  ? resize_camera(in.fit.camera, opt.width, opt.height)
+                  : in.fit.camera;
+  in.poses = compose_motion(in.fit, in.dm.motion, opt.in_place);
+  in.sources = skeleton_sources(*in.fit.model);
+  return in;
+}
+
+void check_ffmpeg(const std::string& prior_dir) {
+  if (find_ffmpeg().empty())
     throw Error("writing " + (fs::path(prior_dir) / "conditions" / "dwpose.mp4").string() +
                 " needs ffmpeg, which was not found on PATH (install it, e.g. `apt-get install "
                 "ffmpeg`, or give --no-video)");
+}
 
-  note(talk, "subject " + subject_dir + " (" + model.kind_name() + " body), camera " +
-                 std::to_string(camera.width) + "x" + std::to_string(camera.height) +
-                 ", motion \"" + dm.motion.name + "\": " + std::to_string(N) + " poses at " +
-                 std::to_string(dm.motion.fps).substr(0, 5) + " fps");
+std::string subject_summary(const std::string& subject_dir, const SampleInputs& in) {
+  return "subject " + subject_dir + " (" + in.fit.model->kind_name() + " body), camera " +
+         std::to_string(in.camera.width) + "x" + std::to_string(in.camera.height) + ", motion \"" +
+         in.dm.motion.name + "\": " + std::to_string(in.poses.size()) + " poses at " +
+         std::to_string(in.dm.motion.fps).substr(0, 5) + " fps";
+}
 
-  // ---- Depth range over the sequence (camera z of every vertex), and the alignment.
+constexpr double kMinDepthMargin = 0.01;    // metres of camera z
+constexpr double kDepthMarginShare = 0.02;  // of the sequence's depth range
+constexpr double kMinDepthNear = 1e-3;      // metres
+
+// The depth encoding's range: camera z of every vertex over the sequence, with a margin.
+ConditionOptions condition_options(const SampleInputs& in, int supersample) {
   double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
-  for (int f = 0; f < N; ++f) {
-    const BodyState s = body_forward(model, poses[size_t(f)]);
+  for (const BodyParams& pose : in.poses) {
+    const BodyState s = body_forward(*in.fit.model, pose);
     for (long i = 0; i < s.vertices.rows(); ++i) {
-      const double z = camera.to_camera(s.vertices.row(i).transpose()).z();
+      const double z = in.camera.to_camera(s.vertices.row(i).transpose()).z();
       if (z > 0) {
         zmin = std::min(zmin, z);
         zmax = std::max(zmax, z);
@@ -284,170 +283,166 @@ PoseSequence run_sample(const std::string& subject_dir, const std::string& prior
     }
   }
   if (!(zmin <= zmax)) throw Error("sample: the body is behind the fit's camera in every pose");
-  const double margin = std::max(0.01, 0.02 * (zmax - zmin));
+  const double margin = std::max(kMinDepthMargin, kDepthMarginShare * (zmax - zmin));
   ConditionOptions copt;
-  copt.supersample = opt.supersample;
-  copt.depth_near = std::max(1e-3, zmin - margin);
+  copt.supersample = supersample;
+  copt.depth_near = std::max(kMinDepthNear, zmin - margin);
   copt.depth_far = zmax + margin;
+  return copt;
+}
 
-  auto driving_params = [&](const BodyParams& p) {
-    BodyParams q = p;
-    q.betas = driving_betas;
-    q.expression.resize(0);
-    fit_params_to_model(q, *driving);
-    return q;
-  };
-  std::optional<PoseAlignment> alignment;
-  if (driving) {
-    // Scales: both bodies in the rest pose (a T-pose), oriented and placed as frame 0, seen by the
-    // camera (so the ratios measure proportions, not foreshortening); offset: their necks in
-    // frame 0's pose.
-    BodyParams rest = poses[0];
-    rest.body_pose.setZero();
-    rest.left_hand_pose.setZero();
-    rest.right_hand_pose.setZero();
-    const Skeleton2D ref =
-        project_skeleton(skeleton_points(sources, body_forward(model, rest)), camera);
-    const Skeleton2D src = project_skeleton(
-        skeleton_points(*driving_sources, body_forward(*driving, driving_params(rest))), camera);
-    PoseAlignment a = compute_pose_alignment(ref, src);
-    const Skeleton2D ref0 =
-        project_skeleton(skeleton_points(sources, body_forward(model, poses[0])), camera);
-    const Skeleton2D src0 = project_skeleton(
-        skeleton_points(*driving_sources, body_forward(*driving, driving_params(poses[0]))),
-        camera);
-    a.offset = (ref0.row(body25::kNeck) - src0.row(body25::kNeck)).transpose();
-    alignment = a;
-    std::string sc;
-    for (int i = 0; i < kAlignParts; ++i) {
-      char b[48];
-      std::snprintf(b, sizeof b, "%s%s %.3f", i ? ", " : "", kAlignPartNames[size_t(i)],
-                    a.scale[size_t(i)]);
-      sc += b;
+// The driving body and its alignment to the subject (both or neither).
+struct Driving {
+  const DrivingBody* body = nullptr;
+  const PoseAlignment* alignment = nullptr;
+};
+
+void write_condition_images(const fs::path& dir, int f, const ConditionImages& c) {
+  const std::string png = frame_name(f, "png");
+  write_png((dir / "depth" / png).string(), c.depth);
+  write_png((dir / "normal" / png).string(), c.normal);
+  write_png((dir / "semantic_map" / png).string(), c.semantic);
+  write_png((dir / "dwpose" / png).string(), c.dwpose);
+  write_png((dir / "mask" / png).string(), c.mask);
+  write_png((dir / "shaded" / png).string(), c.shaded);
+  write_text_atomic((dir / "keypoints" / frame_name(f, "json")).string(),
+                    skeleton_openpose_json(c.skeleton, c.visible).dump());
+}
+
+// Frame f's conditions into dir's folders; its alignment error (none without a driving body).
+AlignmentError write_frame(const fs::path& dir, int f, const SampleInputs& in,
+                           const ConditionOptions& copt, const Driving& driving) {
+  const BodyParams& pose = in.poses[size_t(f)];
+  const BodyState s = body_forward(*in.fit.model, pose);
+  std::optional<Skeleton2D> aligned;
+  AlignmentError err;
+  if (driving.alignment)
+    aligned =
+        aligned_skeleton(*driving.body, *driving.alignment, pose, in.sources, s, in.camera, err);
+  const ConditionImages c = render_conditions(*in.fit.model, in.sources, s, in.camera, copt,
+                                              aligned ? &*aligned : nullptr);
+  write_condition_images(dir, f, c);
+  return err;
+}
+
+// Every frame's conditions into dir's folders, frames in parallel; the alignment error summed.
+AlignmentError write_frames(const fs::path& dir, const SampleInputs& in,
+                            const ConditionOptions& copt, const Driving& driving, bool talk) {
+  const int N = int(in.poses.size());
+  Progress prog("sample", N);
+  std::mutex mu;
+  std::exception_ptr error;
+  std::atomic<int> done{0};
+  AlignmentError total;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int f = 0; f < N; ++f) {
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      if (error) continue;
     }
-    note(talk, "pose alignment (SVAD) of the driving body " + driving_name + ": " + sc);
+    try {
+      const AlignmentError err = write_frame(dir, f, in, copt, driving);
+      std::lock_guard<std::mutex> lock(mu);
+      total.add(err);
+      if (talk) prog.update(++done);
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(mu);
+      if (!error) error = std::current_exception();
+    }
   }
+  if (error) std::rethrow_exception(error);
+  if (talk) prog.finish();
+  return total;
+}
 
-  // ---- Render and write, frames in parallel.
+void write_dwpose_video(const fs::path& dir, int frames, double fps) {
+  std::vector<std::string> pngs;
+  for (int f = 0; f < frames; ++f) pngs.push_back((dir / "dwpose" / frame_name(f, "png")).string());
+  VideoOptions vo;
+  vo.fps = fps;
+  write_mp4_from_pngs((dir / "dwpose.mp4").string(), pngs, vo);
+}
+
+// The part labels' colours in semantic_map/ (0-255), by part name.
+nlohmann::json semantic_colors() {
+  std::vector<int> labels(kNumParts);
+  for (int i = 0; i < kNumParts; ++i) labels[size_t(i)] = i;
+  const Image pal = labels_to_rgb(labels, kNumParts, 1, Eigen::Vector3d::Zero());
+  nlohmann::json parts;
+  for (int i = 0; i < kNumParts; ++i)
+    parts[std::string(kPartNames[size_t(i)])] = {int(std::lround(pal.at(i, 0, 0) * 255)),
+                                                 int(std::lround(pal.at(i, 0, 1) * 255)),
+                                                 int(std::lround(pal.at(i, 0, 2) * 255))};
+  return parts;
+}
+
+// poses.json's "alignment"; says the mean distances.
+nlohmann::json alignment_json(const Driving& driving, const AlignmentError& err,
+                              const SampleNote& note) {
+  if (!driving.alignment) return nullptr;
+  const Eigen::VectorXd& betas = driving.body->betas;
+  nlohmann::json aj = driving.alignment->to_json();
+  aj["driving_body"] = driving.body->name;
+  aj["driving_betas"] = std::vector<double>(betas.data(), betas.data() + betas.size());
+  aj["mean_px_from_subject"] = {{"unaligned", err.unaligned / std::max(1L, err.points)},
+                                {"aligned", err.aligned / std::max(1L, err.points)}};
+  char b[160];
+  std::snprintf(b, sizeof b,
+                "aligned skeleton %.2f px from the subject's own on average (unaligned %.2f)",
+                err.aligned / std::max(1L, err.points), err.unaligned / std::max(1L, err.points));
+  note(b);
+  return aj;
+}
+
+// poses.json's "conditions".
+nlohmann::json conditions_json(const SampleInputs& in, const ConditionOptions& copt,
+                               const SampleOptions& opt, const Driving& driving,
+                               const AlignmentError& err, const SampleNote& note) {
+  nlohmann::json cj;
+  cj["folder"] = "conditions";
+  cj["size"] = {in.camera.width, in.camera.height};
+  cj["frames"] = int(in.poses.size());
+  cj["supersample"] = opt.supersample;
+  cj["depth"] = {{"near", copt.depth_near},
+                 {"far", copt.depth_far},
+                 {"encoding", "v = 1 - 0.8 (z - near) / (far - near), background 0"}};
+  cj["semantic_colors"] = semantic_colors();
+  cj["skeleton"] = "coco18";
+  cj["video"] = opt.video ? nlohmann::json("conditions/dwpose.mp4") : nlohmann::json(nullptr);
+  cj["in_place"] = opt.in_place;
+  cj["alignment"] = alignment_json(driving, err, note);
+  return cj;
+}
+
+PoseSequence pose_sequence(const std::string& subject_dir, const SampleInputs& in) {
+  PoseSequence seq;
+  seq.body_model = in.fit.body_model;
+  seq.model = in.fit.model;
+  seq.betas = in.fit.params.betas;
+  seq.fps = in.dm.motion.fps;
+  seq.motion = in.dm.motion.name;
+  seq.subject = fs::absolute(subject_dir).lexically_normal().string();
+  for (const BodyParams& p : in.poses) seq.frames.push_back({p, in.camera});
+  return seq;
+}
+
+// PRIOR/conditions/ (complete or not at all), then PRIOR/poses.json; a PRIOR folder this run
+// made goes again when anything fails.
+PoseSequence write_prior(const std::string& subject_dir, const std::string& prior_dir,
+                         const SampleInputs& in, const ConditionOptions& copt,
+                         const Driving& driving, const SampleOptions& opt, const SampleNote& note) {
   const fs::path prior(prior_dir);
   const bool prior_existed = fs::exists(prior);
   try {
     StagedDir staged((prior / "conditions").string());
     for (const char* sub : kFolders) fs::create_directories(staged.staging() / sub);
-    Progress prog("sample", N);
-    std::mutex mu;
-    std::exception_ptr error;
-    std::atomic<int> done{0};
-    double err_before = 0, err_after = 0;
-    long err_count = 0;
-#pragma omp parallel for schedule(dynamic, 1)
-    for (int f = 0; f < N; ++f) {
-      {
-        std::lock_guard<std::mutex> lock(mu);
-        if (error) continue;
-      }
-      try {
-        const BodyState s = body_forward(model, poses[size_t(f)]);
-        std::optional<Skeleton2D> aligned;
-        double eb = 0, ea = 0;
-        long ec = 0;
-        if (alignment) {
-          const Skeleton2D src = project_skeleton(
-              skeleton_points(*driving_sources,
-                              body_forward(*driving, driving_params(poses[size_t(f)]))),
-              camera);
-          aligned = align_skeleton(src, *alignment);
-          const Skeleton2D own = project_skeleton(skeleton_points(sources, s), camera);
-          for (int i = 0; i < 18; ++i) {
-            const int k = coco18_to_body25(i);
-            eb += (src.row(k) - own.row(k)).norm();
-            ea += (aligned->row(k) - own.row(k)).norm();
-            ++ec;
-          }
-        }
-        const ConditionImages c =
-            render_conditions(model, sources, s, camera, copt, aligned ? &*aligned : nullptr);
-        const std::string png = frame_name(f, "png");
-        write_png((staged.staging() / "depth" / png).string(), c.depth);
-        write_png((staged.staging() / "normal" / png).string(), c.normal);
-        write_png((staged.staging() / "semantic_map" / png).string(), c.semantic);
-        write_png((staged.staging() / "dwpose" / png).string(), c.dwpose);
-        write_png((staged.staging() / "mask" / png).string(), c.mask);
-        write_png((staged.staging() / "shaded" / png).string(), c.shaded);
-        write_text_atomic((staged.staging() / "keypoints" / frame_name(f, "json")).string(),
-                          skeleton_openpose_json(c.skeleton, c.visible).dump());
-        std::lock_guard<std::mutex> lock(mu);
-        err_before += eb;
-        err_after += ea;
-        err_count += ec;
-        if (talk) prog.update(++done);
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(mu);
-        if (!error) error = std::current_exception();
-      }
-    }
-    if (error) std::rethrow_exception(error);
-    if (talk) prog.finish();
-
+    const AlignmentError err = write_frames(staged.staging(), in, copt, driving, opt.progress);
     if (opt.video) {
-      note(talk, "encoding conditions/dwpose.mp4");
-      std::vector<std::string> pngs;
-      for (int f = 0; f < N; ++f)
-        pngs.push_back((staged.staging() / "dwpose" / frame_name(f, "png")).string());
-      VideoOptions vo;
-      vo.fps = dm.motion.fps;
-      write_mp4_from_pngs((staged.staging() / "dwpose.mp4").string(), pngs, vo);
+      note("encoding conditions/dwpose.mp4");
+      write_dwpose_video(staged.staging(), int(in.poses.size()), in.dm.motion.fps);
     }
-
-    // ---- poses.json.
-    PoseSequence seq;
-    seq.body_model = fit.body_model;
-    seq.model = fit.model;
-    seq.betas = fit.params.betas;
-    seq.fps = dm.motion.fps;
-    seq.motion = dm.motion.name;
-    seq.subject = fs::absolute(subject_dir).lexically_normal().string();
-    for (const BodyParams& p : poses) seq.frames.push_back({p, camera});
-    nlohmann::json cj;
-    cj["folder"] = "conditions";
-    cj["size"] = {camera.width, camera.height};
-    cj["frames"] = N;
-    cj["supersample"] = opt.supersample;
-    cj["depth"] = {{"near", copt.depth_near},
-                   {"far", copt.depth_far},
-                   {"encoding", "v = 1 - 0.8 (z - near) / (far - near), background 0"}};
-    {
-      std::vector<int> labels(kNumParts);
-      for (int i = 0; i < kNumParts; ++i) labels[size_t(i)] = i;
-      const Image pal = labels_to_rgb(labels, kNumParts, 1, Eigen::Vector3d::Zero());
-      nlohmann::json parts;
-      for (int i = 0; i < kNumParts; ++i)
-        parts[std::string(kPartNames[size_t(i)])] = {int(std::lround(pal.at(i, 0, 0) * 255)),
-                                                     int(std::lround(pal.at(i, 0, 1) * 255)),
-                                                     int(std::lround(pal.at(i, 0, 2) * 255))};
-      cj["semantic_colors"] = parts;
-    }
-    cj["skeleton"] = "coco18";
-    cj["video"] = opt.video ? nlohmann::json("conditions/dwpose.mp4") : nlohmann::json(nullptr);
-    cj["in_place"] = opt.in_place;
-    if (alignment) {
-      nlohmann::json aj = alignment->to_json();
-      aj["driving_body"] = driving_name;
-      aj["driving_betas"] =
-          std::vector<double>(driving_betas.data(), driving_betas.data() + driving_betas.size());
-      aj["mean_px_from_subject"] = {{"unaligned", err_before / std::max(1L, err_count)},
-                                    {"aligned", err_after / std::max(1L, err_count)}};
-      cj["alignment"] = aj;
-      char b[160];
-      std::snprintf(b, sizeof b,
-                    "aligned skeleton %.2f px from the subject's own on average (unaligned %.2f)",
-                    err_after / std::max(1L, err_count), err_before / std::max(1L, err_count));
-      note(talk, b);
-    } else {
-      cj["alignment"] = nullptr;
-    }
-    seq.conditions = cj;
-
+    PoseSequence seq = pose_sequence(subject_dir, in);
+    seq.conditions = conditions_json(in, copt, opt, driving, err, note);
     std::error_code ec;
     fs::remove(prior / "poses.json", ec);  // never an old poses.json beside new conditions
     staged.commit();
@@ -458,6 +453,34 @@ PoseSequence run_sample(const std::string& subject_dir, const std::string& prior
     if (!prior_existed) fs::remove_all(prior, ec);
     throw;
   }
+}
+
+}  // namespace
+
+PoseSequence run_sample(const std::string& subject_dir, const std::string& prior_dir,
+                        const SampleOptions& opt) {
+  const SampleNote say = [talk = opt.progress](const std::string& s) { note(talk, s); };
+  // ---- Everything is checked before anything is written.
+  check_sample_options(prior_dir, opt);
+  const SampleInputs in = read_sample_inputs(subject_dir, opt, say);
+  const std::optional<DrivingBody> driving_body =
+      choose_driving_body(opt.driving_body, in.fit, in.dm.betas, say);
+  if (opt.video) check_ffmpeg(prior_dir);
+  say(subject_summary(subject_dir, in));
+
+  // ---- Depth range over the sequence, and the alignment of the driving body (SVAD).
+  const ConditionOptions copt = condition_options(in, opt.supersample);
+  std::optional<PoseAlignment> alignment;
+  if (driving_body) {
+    alignment =
+        align_driving_body(*driving_body, *in.fit.model, in.sources, in.poses[0], in.camera);
+    say("pose alignment (SVAD) of the driving body " + driving_body->name + ": " +
+        alignment_scales_text(*alignment));
+  }
+
+  // ---- Render and write, frames in parallel; then poses.json.
+  const Driving driving{driving_body ? &*driving_body : nullptr, alignment ? &*alignment : nullptr};
+  return write_prior(subject_dir, prior_dir, in, copt, driving, opt, say);
 }
 
 }  // namespace ks
