@@ -12,6 +12,7 @@
 
 #include "cli/registry.hpp"
 #include "core/error.hpp"
+#include "core/math.hpp"
 #include "core/speed_probe.hpp"
 #include "gaussians/ply.hpp"
 #include "raster/avatar_cloud.hpp"
@@ -26,12 +27,6 @@ struct Opts {
   bool backward = false, probe = true;
   std::string ply, camera, save_ply, save_camera, kernel = "auto", device = "cpu";
 };
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 // Upstream gradients for the backward: small, fixed, reproducible.
 void make_upstream(const ks::Camera& cam, ks::Image& dc, ks::Image& da) {
@@ -64,13 +59,13 @@ struct Timings {
 void print_timings(const Timings& t, int frames) {
   const int d = t.digits, fd = t.fps_digits;
   auto least = [](const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); };
-  const double mf = median(t.fwd), mi = median(t.img);
+  const double mf = ks::median(t.fwd), mi = ks::median(t.img);
   std::printf("forward: median %.*f ms, min %.*f ms over %d frames%s\n", d, mf, d, least(t.fwd),
               frames, t.fwd_note.c_str());
   std::printf("forward, image only (playback): median %.*f ms, min %.*f ms (%.*f FPS%s)\n", d, mi,
               d, least(t.img), fd, 1000.0 / mi, t.img_note.c_str());
   if (!t.both.empty()) {
-    const double mb = median(t.both);
+    const double mb = ks::median(t.both);
     std::printf("forward+backward: median %.*f ms, min %.*f ms over %d frames%s\n", d, mb, d,
                 least(t.both), frames, t.both_note.c_str());
     std::printf("forward %.*f FPS, forward+backward %.*f ms\n", fd, 1000.0 / mf, d, mb);
@@ -142,11 +137,11 @@ void run_cuda(const Opts& o, const ks::Gaussians& g, const ks::Camera& cam) {
       "%.1f%%\n",
       g.size(), visible, cam.width, cam.height, ks::cuda::raster_cuda_describe().c_str(), entries,
       coverage);
-  t.fwd_note = note(" (kernels %.3f ms)", median(fwd_k));
-  t.img_note = note("; kernels %.3f ms", median(img_k));
+  t.fwd_note = note(" (kernels %.3f ms)", ks::median(fwd_k));
+  t.img_note = note("; kernels %.3f ms", ks::median(img_k));
   if (o.backward)
     t.both_note = note(" (kernels %.3f ms; the rest is the copy of dL/dcolour and dL/dalpha)",
-                       median(both_k));
+                       ks::median(both_k));
   print_timings(t, o.frames);
 }
 

@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "core/math.hpp"
 #include "generate/lift_body.hpp"
 #include "generate/lift_fill.hpp"
 #include "generate/lift_mirrors.hpp"
@@ -68,7 +69,7 @@ SynthPerson lift_person(const Image& photo, const Image& mask, const SubjectFit&
     report->garment = tube.garment.summary;
     report->garment_vertices = int(Nall - N);
     report->rim_vertices = int(rim.size());
-    report->offset_median_m = upper_median(std::vector<double>(offset.data(), offset.data() + N));
+    report->offset_median_m = median(std::vector<double>(offset.data(), offset.data() + N));
     report->offset_max_m = offset.size() ? offset.maxCoeff() : 0.0;
     report->hair_colour = head.hair;
   }

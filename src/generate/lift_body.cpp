@@ -50,10 +50,4 @@ Eigen::Vector3d sample_rgb(const Image& img, double u, double v) {
   return c;
 }
 
-double upper_median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + long(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 }  // namespace ks::lift

@@ -3,7 +3,6 @@
 // subdivided rest mesh, the zero pose, the fit's pose rendered through the fit's camera, the
 // head's landmark heights), and the image lookups the steps share.
 #include <Eigen/Core>
-#include <vector>
 
 #include "body/body_model.hpp"
 #include "core/image.hpp"
@@ -41,9 +40,5 @@ bool in_mask(const Image& mask, double u, double v);
 // Bilinear sample of an image's first three channels (the first, repeated, for grey) at image
 // point (u, v) (pixel centres at integer + 0.5), clamped to the image.
 Eigen::Vector3d sample_rgb(const Image& img, double u, double v);
-
-// The upper of the two middle values for an even count (0 for none): lift.cpp's statistic before
-// issue 58; kept for one commit to show the split alone changes nothing.
-double upper_median(std::vector<double> v);
 
 }  // namespace ks::lift

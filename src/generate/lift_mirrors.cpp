@@ -78,7 +78,7 @@ HeadColours head_colours(const SeenColour& seen, const LiftBody& body, const Lif
       if (head(i) && V0(i, 1) > body.head.brow + o.crown_above_brow &&
           seen.weight(i) > o.hair_min_seen)
         for (int k = 0; k < 3; ++k) ch[k].push_back(seen.colour(i, k));
-    for (int k = 0; k < 3; ++k) h.hair(k) = upper_median(ch[k]);
+    for (int k = 0; k < 3; ++k) h.hair(k) = median(ch[k]);
   }
   h.nape = h.hair;
   {
@@ -90,7 +90,7 @@ HeadColours head_colours(const SeenColour& seen, const LiftBody& body, const Lif
           V0(i, 1) < top && V0(i, 1) > bottom)
         for (int k = 0; k < 3; ++k) ch[k].push_back(seen.colour(i, k));
     if (!ch[0].empty())
-      for (int k = 0; k < 3; ++k) h.nape(k) = upper_median(ch[k]);
+      for (int k = 0; k < 3; ++k) h.nape(k) = median(ch[k]);
   }
   return h;
 }

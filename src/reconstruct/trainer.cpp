@@ -13,6 +13,7 @@
 #include "body/lbs.hpp"
 #include "body/skin_weights.hpp"
 #include "core/error.hpp"
+#include "core/math.hpp"
 #include "core/parallel_copy.hpp"
 #include "core/parallel_sum.hpp"
 #include "core/progress.hpp"
@@ -241,10 +242,7 @@ struct Trainer::Impl {
         const double z = fr.camera.to_camera(bs.joints.row(0).transpose()).z();
         if (z > 0) px.push_back(z / fr.camera.fx);
       }
-      if (!px.empty()) {
-        std::nth_element(px.begin(), px.begin() + px.size() / 2, px.end());
-        pixel_world = px[px.size() / 2];
-      }
+      pixel_world = median(px);  // 0 without frames in front of the camera
       filter_var = float(opt.decoder.filter3d * pixel_world * pixel_world);
     }
     float sh_init[3];
