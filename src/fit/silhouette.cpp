@@ -60,8 +60,10 @@ double DistanceField::sample(double u, double v, double* du, double* dv) const {
   auto at = [&](int xx, int yy) { return double(d[size_t(yy) * width + xx]); };
   const double a = at(x0, y0), b = at(x1, y0), c = at(x0, y1), e = at(x1, y1);
   const double val = (1 - fy) * ((1 - fx) * a + fx * b) + fy * ((1 - fx) * c + fx * e);
-  if (du) *du = (1 - fy) * (b - a) + fy * (e - c) + ex_du;
-  if (dv) *dv = (1 - fx) * (c - a) + fx * (e - b) + ex_dv;
+  // Along an axis clamped to the border the field is constant: the gradient there is the
+  // distance beyond the border's alone.
+  if (du) *du = ex_du != 0 ? ex_du : (1 - fy) * (b - a) + fy * (e - c);
+  if (dv) *dv = ex_dv != 0 ? ex_dv : (1 - fx) * (c - a) + fx * (e - b);
   return val + extra;
 }
 

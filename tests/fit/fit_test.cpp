@@ -200,15 +200,23 @@ TEST(FitSilhouette, DistanceFieldValuesAndGradient) {
   EXPECT_NEAR(du, 1.0, 1e-4);
   // Outside the image: the border value plus the distance beyond it.
   EXPECT_NEAR(df.sample(43.5, 15.5, nullptr, nullptr), 15.0 + 4.0, 1e-3);
-  // Gradient against finite differences at a generic point.
-  const double u = 28.3, v = 23.7, h = 1e-4;
-  df.sample(u, v, &du, &dv);
-  EXPECT_NEAR(
-      du, (df.sample(u + h, v, nullptr, nullptr) - df.sample(u - h, v, nullptr, nullptr)) / (2 * h),
-      1e-3);
-  EXPECT_NEAR(
-      dv, (df.sample(u, v + h, nullptr, nullptr) - df.sample(u, v - h, nullptr, nullptr)) / (2 * h),
-      1e-3);
+  // Gradient against finite differences at generic points inside the image and beyond each
+  // border (there the clamped axis contributes the distance beyond the border alone).
+  const double h = 1e-4;
+  for (const auto& [u, v] : std::vector<std::pair<double, double>>{
+           {28.3, 23.7}, {-4.2, 13.3}, {47.1, 23.7}, {28.3, -6.6}, {33.3, 35.2}, {-3.1, 34.4}}) {
+    df.sample(u, v, &du, &dv);
+    EXPECT_NEAR(
+        du,
+        (df.sample(u + h, v, nullptr, nullptr) - df.sample(u - h, v, nullptr, nullptr)) / (2 * h),
+        1e-3)
+        << u << ", " << v;
+    EXPECT_NEAR(
+        dv,
+        (df.sample(u, v + h, nullptr, nullptr) - df.sample(u, v - h, nullptr, nullptr)) / (2 * h),
+        1e-3)
+        << u << ", " << v;
+  }
   const auto pts = fit::outline_samples(mask, 2.0, 1000);
   EXPECT_GE(pts.size(), 20u);
   for (const auto& p : pts) {
