@@ -4,6 +4,7 @@
 
 #include "body/skin_weights.hpp"
 #include "mesh/trimesh.hpp"
+#include "raster/sh.hpp"
 
 namespace ks {
 
@@ -41,7 +42,7 @@ Avatar avatar_from_body(const BodyModel& model, const Eigen::VectorXd& betas,
   edge /= std::max<size_t>(edges.size(), 1);
   const float log_s = float(std::log(std::max(1e-6, opt.scale_factor * edge)));
   const float logit = std::log(opt.opacity / (1.f - opt.opacity));
-  constexpr float kC0 = 0.28209479177387814f;  // SH band-0 basis
+  constexpr float kC0 = float(sh::kC0);  // SH band-0 basis, in the colours' precision
   a.gaussians.sh_degree = 0;
   a.gaussians.resize(N);
   a.anchors.resize(3 * size_t(N));

@@ -169,4 +169,20 @@ Eigen::MatrixXd body25_points(const std::array<Body25Source, kBody25Count>& sour
   return P;
 }
 
+const std::vector<std::string>& keypoint_convention_names() {
+  static const std::vector<std::string> n = {"joints", "coco"};
+  return n;
+}
+
+const char* to_string(KeypointConvention c) {
+  return keypoint_convention_names()[size_t(c)].c_str();
+}
+
+KeypointConvention parse_keypoint_convention(const std::string& name) {
+  const auto& n = keypoint_convention_names();
+  for (size_t i = 0; i < n.size(); ++i)
+    if (n[i] == name) return KeypointConvention(i);
+  throw Error("keypoint convention \"" + name + "\": expected joints or coco");
+}
+
 }  // namespace ks

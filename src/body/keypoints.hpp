@@ -5,6 +5,7 @@
 // points and compares them with detected keypoints.
 #include <Eigen/Core>
 #include <array>
+#include <string>
 #include <vector>
 
 #include "body/body_model.hpp"
@@ -65,6 +66,12 @@ struct Body25Source {
 // wrists further down the arm, knees at the kneecap; the offsets from the joints were measured
 // (docs/fit.md, "Keypoint conventions").
 enum class KeypointConvention { kJoints, kCoco };
+
+// "joints" / "coco", and back (ks::Error naming the value for any other name).
+const char* to_string(KeypointConvention c);
+KeypointConvention parse_keypoint_convention(const std::string& name);
+// Every convention's name, in the enum's order.
+const std::vector<std::string>& keypoint_convention_names();
 
 // The sources of the 25 keypoints on `model` (SMPL, SMPL-H, SMPL-X or the default: the first 22
 // joints are SMPL's). Throws ks::Error if the model has no head above the neck or no feet.

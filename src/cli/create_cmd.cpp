@@ -13,7 +13,9 @@ namespace {
 // The defaults are the library's (CreateOptions); the flags only override them.
 struct Args {
   ks::CreateOptions o;
-  std::string photo, out, generator = "lift", keypoints = "coco", motions, size;
+  std::string photo, out, motions, size;
+  std::string generator = ks::to_string(o.generate.generator);
+  std::string keypoints = ks::to_string(o.fit.fit.keypoints);
   bool no_face_fusion = false, quiet = false;
 };
 
@@ -34,7 +36,7 @@ ks::cli::CommandGroup group(29, [](CLI::App& app) {
                   "video-diffusion model, --command), frames (frames you have, "
                   "--generated-frames)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"lift", "command", "frames"}));
+      ->check(CLI::IsMember(ks::generator_names()));
   sub->add_option("--command", a->o.generate.command,
                   "With --generator command: its command line (placeholders in docs/generate.md)");
   sub->add_option("--generated-frames", a->o.generate.frames_dir,
@@ -59,7 +61,7 @@ ks::cli::CommandGroup group(29, [](CLI::App& app) {
                   "What the keypoints mark: coco (detectors, annotators) or joints (the body "
                   "model's joints, e.g. synth's photo_keypoints.json)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"coco", "joints"}));
+      ->check(CLI::IsMember(ks::keypoint_convention_names()));
   sub->add_option("--keypoints-pixel-centre", a->o.perceive.keypoints_pixel_centre,
                   "Where --keypoints-file puts the centre of the top-left pixel: 0 (OpenPose, "
                   "COCO) or 0.5 (kinesplat's files)")
@@ -72,24 +74,27 @@ ks::cli::CommandGroup group(29, [](CLI::App& app) {
       ->check(CLI::IsMember({"body", "similarity"}));
   sub->add_option("--restore", a->o.augment.restore_command,
                   "augment: a restoration command run on each frame ({in} {out})");
+  std::string default_motions;
+  for (const auto& m : a->o.motions) default_motions += (default_motions.empty() ? "" : ",") + m;
   sub->add_option("--motions", a->motions,
                   "Motion videos besides the turntable, comma-separated (built-in names or AMASS "
-                  ".npz; default dance; 'none' for none)");
-  sub->add_option("--size", a->size, "Video size WxH (default 512x768)");
+                  ".npz; default " +
+                      (default_motions.empty() ? std::string("none") : default_motions) +
+                      "; 'none' for none)");
+  sub->add_option("--size", a->size,
+                  "Video size WxH (default " + std::to_string(a->o.playback.width) + "x" +
+                      std::to_string(a->o.playback.height) + ")");
   sub->add_flag("--force", a->o.force, "Rerun every stage");
   sub->add_flag("--quiet,-q", a->quiet,
                 "No progress bars: only each stage's lines and the summary");
   sub->callback([a] {
     ks::CreateOptions o = a->o;
-    o.generate.generator = a->generator == "lift"      ? ks::Generator::kLift
-                           : a->generator == "command" ? ks::Generator::kCommand
-                                                       : ks::Generator::kFrames;
+    o.generate.generator = ks::parse_generator(a->generator);
     if (o.generate.generator != ks::Generator::kCommand && !o.generate.command.empty())
       throw ks::Error("--command is for --generator command");
     if (o.generate.generator != ks::Generator::kFrames && !o.generate.frames_dir.empty())
       throw ks::Error("--generated-frames is for --generator frames");
-    o.fit.fit.keypoints =
-        a->keypoints == "joints" ? ks::KeypointConvention::kJoints : ks::KeypointConvention::kCoco;
+    o.fit.fit.keypoints = ks::parse_keypoint_convention(a->keypoints);
     o.augment.face_fusion = !a->no_face_fusion;
     if (!a->motions.empty()) {
       o.motions.clear();

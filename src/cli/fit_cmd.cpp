@@ -22,10 +22,10 @@ namespace fs = std::filesystem;
 
 ks::cli::CommandGroup group(24, [](CLI::App& app) {
   struct Args {
-    std::string subject, body = "default";
-    ks::FitOptions opt;
-    bool overlay = false, no_silhouette = false, quiet = false;
-    std::string keypoints = "coco";
+    ks::FitStageOptions so;
+    std::string subject;
+    bool no_silhouette = false, quiet = false;
+    std::string keypoints = ks::to_string(so.fit.keypoints);
   };
   auto args = std::make_shared<Args>();
   auto* sub = app.add_subcommand(
@@ -33,11 +33,11 @@ ks::cli::CommandGroup group(24, [](CLI::App& app) {
   sub->add_option("subject", args->subject,
                   "Subject directory from `perceive` (image.png, mask.png, keypoints.json)")
       ->required();
-  sub->add_option("--body", args->body, "Body model: 'default' or an SMPL / SMPL-X .npz")
+  sub->add_option("--body", args->so.body, "Body model: 'default' or an SMPL / SMPL-X .npz")
       ->capture_default_str();
-  sub->add_option("--focal", args->opt.focal,
+  sub->add_option("--focal", args->so.fit.focal,
                   "Focal length in pixels of image.png (default: from --fov)");
-  sub->add_option("--fov", args->opt.fov_degrees,
+  sub->add_option("--fov", args->so.fit.fov_degrees,
                   "Field of view across the image's long side, degrees, when --focal is not given")
       ->capture_default_str()
       ->check(CLI::Range(1.0, 170.0));
@@ -47,20 +47,16 @@ ks::cli::CommandGroup group(24, [](CLI::App& app) {
          "them: perceive's, OpenPose's, DWPose's) or 'joints' (the body model's joints: "
          "the synth's photo_keypoints.json)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"coco", "joints"}));
-  sub->add_flag("--overlay", args->overlay,
+      ->check(CLI::IsMember(ks::keypoint_convention_names()));
+  sub->add_flag("--overlay", args->so.overlay,
                 "Also write SUBJECT/fit_overlay.png (the body on the photo, keypoints)");
   sub->add_flag("--no-silhouette", args->no_silhouette, "Fit to the keypoints only");
   sub->add_flag("--quiet,-q", args->quiet, "No stage lines");
   sub->callback([args] {
-    ks::FitStageOptions so;
-    so.body = args->body;
-    so.fit = args->opt;
+    ks::FitStageOptions so = args->so;
     so.fit.use_silhouette = !args->no_silhouette;
     so.fit.progress = !args->quiet;
-    so.fit.keypoints = args->keypoints == "joints" ? ks::KeypointConvention::kJoints
-                                                   : ks::KeypointConvention::kCoco;
-    so.overlay = args->overlay;
+    so.fit.keypoints = ks::parse_keypoint_convention(args->keypoints);
     const ks::FitResult r = ks::run_fit(args->subject, so);
     std::printf("fit: %s the camera, focal %.1f px, %.1f s; wrote %s\n",
                 r.facing_camera ? "facing" : "turned away from", r.camera.fx, r.seconds,

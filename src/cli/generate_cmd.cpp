@@ -14,8 +14,8 @@ namespace fs = std::filesystem;
 
 ks::cli::CommandGroup group(27, [](CLI::App& app) {
   struct Args {
-    std::string prior, subject, with = "lift";
     ks::GenerateOptions opt;
+    std::string prior, subject, with = ks::to_string(opt.generator);
     bool quiet = false;
   };
   auto args = std::make_shared<Args>();
@@ -26,7 +26,7 @@ ks::cli::CommandGroup group(27, [](CLI::App& app) {
                   "Generator: lift (built in, no weights), command (an external program, "
                   "--command), frames (frames you have, --frames)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"lift", "command", "frames"}));
+      ->check(CLI::IsMember(ks::generator_names()));
   sub->add_option("--subject", args->subject,
                   "Subject folder (image.png, mask.png, fit.json); default: the one poses.json "
                   "names");
@@ -47,9 +47,7 @@ ks::cli::CommandGroup group(27, [](CLI::App& app) {
   sub->callback([args] {
     ks::GenerateOptions o = args->opt;
     o.progress = !args->quiet;
-    o.generator = args->with == "lift"      ? ks::Generator::kLift
-                  : args->with == "command" ? ks::Generator::kCommand
-                                            : ks::Generator::kFrames;
+    o.generator = ks::parse_generator(args->with);
     if (o.generator != ks::Generator::kCommand && !o.command.empty())
       throw ks::Error("generate: --command is for --with command");
     if (o.generator != ks::Generator::kFrames && !o.frames_dir.empty())
@@ -63,7 +61,7 @@ ks::cli::CommandGroup group(27, [](CLI::App& app) {
         throw ks::Error(poses + " does not name its subject: give --subject SUBJECT");
     }
     const ks::GenerateReport r = ks::run_generate(args->prior, subject, o);
-    if (r.generator == "lift")
+    if (r.generator == ks::to_string(ks::Generator::kLift))
       std::printf(
           "generate: lift: %d vertices (%.0f%% seen in the photo, %.0f%% from mirrors, %.0f%% "
           "filled); %s\n",

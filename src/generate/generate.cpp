@@ -191,7 +191,7 @@ GenerateReport generate_lift(const std::string& subject_dir, const SubjectFit& f
   if (!fs::exists(mask_path)) throw Error(mask_path + ": missing (run `kinesplat perceive`)");
   const Image mask = read_image(mask_path, 1);
   GenerateReport rep;
-  rep.generator = "lift";
+  rep.generator = to_string(Generator::kLift);
   const SynthPerson person = lift_person(photo, mask, fit, o.lift, &rep.lift);
 
   StagedDir staged(out_dir);
@@ -237,7 +237,7 @@ GenerateReport run_generate(const std::string& prior_dir, const std::string& sub
 
   const auto t0 = std::chrono::steady_clock::now();
   GenerateReport rep;
-  rep.generator = o.generator == Generator::kCommand ? "command" : "frames";
+  rep.generator = to_string(o.generator);
   StagedDir staged(out.string());
   const fs::path root = staged.staging();
   fs::path frames_dir;
@@ -289,6 +289,20 @@ GenerateReport run_generate(const std::string& prior_dir, const std::string& sub
   rep.frames = int(ds.frames.size());
   rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return rep;
+}
+
+const std::vector<std::string>& generator_names() {
+  static const std::vector<std::string> n = {"lift", "command", "frames"};
+  return n;
+}
+
+const char* to_string(Generator g) { return generator_names()[size_t(g)].c_str(); }
+
+Generator parse_generator(const std::string& name) {
+  const auto& n = generator_names();
+  for (size_t i = 0; i < n.size(); ++i)
+    if (n[i] == name) return Generator(i);
+  throw Error("generator \"" + name + "\": expected lift, command or frames");
 }
 
 }  // namespace ks

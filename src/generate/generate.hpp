@@ -21,6 +21,12 @@ namespace ks {
 
 enum class Generator { kLift, kCommand, kFrames };
 
+// "lift" / "command" / "frames", and back (ks::Error naming the value for any other name).
+const char* to_string(Generator g);
+Generator parse_generator(const std::string& name);
+// Every generator's name, in the enum's order.
+const std::vector<std::string>& generator_names();
+
 struct GenerateOptions {
   Generator generator = Generator::kLift;
   LiftOptions lift;

@@ -5,6 +5,8 @@
 #include <random>
 #include <vector>
 
+#include "raster/sh.hpp"
+
 namespace ks {
 namespace {
 
@@ -118,7 +120,7 @@ Gaussians make_avatar_cloud(size_t n, unsigned seed) {
     g.opacity_logits[i] = float(std::log(op / (1 - op)));
     for (int c = 0; c < 3; ++c) {
       const double col = std::clamp(p.colour[c] + 0.05 * N01(rng), 0.0, 1.0);
-      g.sh[(i * K) * 3 + c] = float((col - 0.5) / 0.28209479177387814);
+      g.sh[(i * K) * 3 + c] = float((col - 0.5) / sh::kC0);
       for (int kk = 1; kk < K; ++kk) g.sh[(i * K + kk) * 3 + c] = float(0.03 * N01(rng));
     }
   }

@@ -9,7 +9,8 @@
 
 namespace ks::sh {
 
-constexpr double kC0 = 0.28209479177387814;
+constexpr double kC0 = 0.28209479177387814;  // band 0: the one definition
+static_assert(float(kC0) == 0.28209479177387814f, "float(kC0) is the float constant");
 constexpr double kC1 = 0.4886025119029199;
 constexpr double kC2[5] = {1.0925484305920792, -1.0925484305920792, 0.31539156525252005,
                            -1.0925484305920792, 0.5462742152960396};

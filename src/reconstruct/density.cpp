@@ -271,6 +271,12 @@ const std::vector<std::string>& density_control_names() {
   return names;
 }
 
+void require_density_name(const std::string& name) {
+  const auto& names = density_control_names();
+  if (std::find(names.begin(), names.end(), name) == names.end())
+    throw Error("density control \"" + name + "\": expected gpdc, vertex, naive or off");
+}
+
 std::unique_ptr<DensityControl> make_density_control(const std::string& name,
                                                      const DensityOptions& o) {
   if (name == "gpdc") return std::make_unique<GpdcControl>(o);

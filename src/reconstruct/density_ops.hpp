@@ -111,6 +111,9 @@ struct DensityOptions {
 std::unique_ptr<DensityControl> make_density_control(const std::string& name,
                                                      const DensityOptions& options = {});
 const std::vector<std::string>& density_control_names();
+// Throws ks::Error ("density control "X": expected gpdc, vertex, naive or off") unless `name` is
+// one of density_control_names().
+void require_density_name(const std::string& name);
 
 // Statistics of the last actions of a control (for logs and tests).
 struct DensityStats {

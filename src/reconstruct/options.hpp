@@ -103,8 +103,8 @@ struct TrainOptions {
   VertexColorOptions vertex_color;
   LearnedSkinOptions skin;
   GarmentOptions garment;
-  VisibilityOptions visibility;       // decode and draw only what a frame can see
-  DensityControl* density = nullptr;  // not owned; called after every step
+  VisibilityOptions visibility;               // decode and draw only what a frame can see
+  DensityControl* density_control = nullptr;  // not owned; called after every step
   // The rasterizer's forward and backward on an NVIDIA GPU (raster_cuda/; a build with
   // KS_CUDA): the Gaussians go up and their gradients come back each step, and everything else
   // in the step (decoders, skinning, losses, Adam) stays on the CPU.

@@ -13,15 +13,10 @@ namespace ks {
 TrainReport reconstruct_avatar(const std::string& dataset_dir, const std::string& out,
                                const ReconstructOptions& options, Avatar* avatar) {
   TrainOptions opt = options.train;
-  std::unique_ptr<DensityControl> density;
-  opt.density = nullptr;
+  std::unique_ptr<DensityControl> control;
+  opt.density_control = nullptr;
   opt.fine_frames = nullptr;
-  if (options.density != "off") {
-    const auto& names = density_control_names();
-    if (std::find(names.begin(), names.end(), options.density) == names.end())
-      throw Error("density control \"" + options.density +
-                  "\": expected gpdc, vertex, naive or off");
-  }
+  require_density_name(options.density);
   const Dataset ds = Dataset::load(dataset_dir);
   const BodyModel model = load_dataset_body_model(ds, dataset_dir);
   const auto frames = load_frames(ds, dataset_dir, opt.scale, opt.perturb, opt.seed);
@@ -34,8 +29,8 @@ TrainReport reconstruct_avatar(const std::string& dataset_dir, const std::string
     // Gradient thresholds are in training-image pixel units: pass the real training width.
     DensityOptions dopt;
     dopt.image_width = frames.empty() ? 0 : frames.front().image.width;
-    density = make_density_control(options.density, dopt);
-    opt.density = density.get();
+    control = make_density_control(options.density, dopt);
+    opt.density_control = control.get();
   }
   TrainReport rep;
   Avatar av = train_avatar(model, ds, frames, opt, &rep);

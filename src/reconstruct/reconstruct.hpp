@@ -11,8 +11,9 @@
 namespace ks {
 
 struct ReconstructOptions {
-  TrainOptions train;           // its `density` and `fine_frames` are set here, not by callers
-  std::string density = "off";  // gpdc | vertex | naive | off (reconstruct/density_ops.hpp)
+  TrainOptions train;  // its `density_control` and `fine_frames` are set here, not by callers
+  // The density control's name: gpdc | vertex | naive | off (reconstruct/density_ops.hpp).
+  std::string density = "off";
 };
 
 // Throws ks::Error for an unreadable dataset or an unknown density control; nothing is written

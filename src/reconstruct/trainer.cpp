@@ -20,6 +20,7 @@
 #include "mesh/morton.hpp"
 #include "mesh/trimesh.hpp"
 #include "raster/rasterizer.hpp"
+#include "raster/sh.hpp"
 #include "raster_cuda/rasterizer_cuda.hpp"
 #include "reconstruct/components/garment.hpp"
 #include "reconstruct/components/learned_skin.hpp"
@@ -32,26 +33,37 @@ namespace ks {
 
 namespace {
 
-constexpr float kSH0 = 0.28209479177387814f;
+constexpr float kSH0 = float(sh::kC0);  // the SH band-0 basis, in the colours' precision
 
 void check_options(const std::vector<LoadedFrame>& frames, const TrainOptions& opt) {
   if (frames.empty()) throw Error("reconstruct: no training frames");
-  if (opt.iterations < 1) throw Error("reconstruct: --iters must be >= 1");
+  if (opt.iterations < 1)
+    throw Error("reconstruct: the step count must be >= 1, got " + std::to_string(opt.iterations));
   if (opt.fine_frames && opt.fine_from < 1.f && opt.fine_frames->size() != frames.size())
     throw Error("reconstruct: the fine frames must be the same frames as the coarse ones");
   if (opt.subdivide < 0 || opt.subdivide > 4)
-    throw Error("reconstruct: --subdivide must be in [0, 4]");
+    throw Error("reconstruct: the subdivision level must be in [0, 4], got " +
+                std::to_string(opt.subdivide));
   const DecoderOptions& d = opt.decoder;
   if (d.triplane_res < 2 || d.triplane_res > 4096)
-    throw Error("reconstruct: --triplane-res must be in [2, 4096]");
+    throw Error("reconstruct: the triplane resolution must be in [2, 4096], got " +
+                std::to_string(d.triplane_res));
   if (d.triplane_channels < 1 || d.triplane_channels > 256)
-    throw Error("reconstruct: --triplane-channels must be in [1, 256]");
-  if (d.hidden < 1 || d.hidden > 1024) throw Error("reconstruct: --hidden must be in [1, 1024]");
+    throw Error("reconstruct: the triplane channels must be in [1, 256], got " +
+                std::to_string(d.triplane_channels));
+  if (d.hidden < 1 || d.hidden > 1024)
+    throw Error("reconstruct: the MLPs' hidden width must be in [1, 1024], got " +
+                std::to_string(d.hidden));
   const VisibilityOptions& v = opt.visibility;
   if (!(v.start >= 0.f && v.start <= 1.f))
-    throw Error("reconstruct: --visibility-start must be in [0, 1]");
-  if (!(v.depth_margin >= 0.f)) throw Error("reconstruct: --visibility-margin must be >= 0");
-  if (v.whole_every < 0) throw Error("reconstruct: --visibility-whole-every must be >= 0");
+    throw Error("reconstruct: the visibility test's start must be in [0, 1] of the steps, got " +
+                std::to_string(v.start));
+  if (!(v.depth_margin >= 0.f))
+    throw Error("reconstruct: the visibility depth margin must be >= 0, got " +
+                std::to_string(v.depth_margin));
+  if (v.whole_every < 0)
+    throw Error("reconstruct: the visibility test's whole-frame period must be >= 0, got " +
+                std::to_string(v.whole_every));
   if (v.cell < 1 || v.reach < 0)
     throw Error("reconstruct: the visibility cell must be >= 1 pixel and its reach >= 0");
 }
@@ -293,7 +305,7 @@ struct Trainer::Impl {
 
   // ---- one step
 
-  StepLosses evaluate(const LoadedFrame& fr) {
+  StepLosses forward_backward(const LoadedFrame& fr) {
     const int n = st.num_vertices();
     StepContext ctx;
     ctx.iteration = it;
@@ -453,10 +465,10 @@ struct Trainer::Impl {
       st.grad2d_count[i] += 1;
       st.max_radius[i] = std::max(st.max_radius[i], rr.radii[i]);
     }
-    if (opt.density) {
+    if (opt.density_control) {
       st.iteration = it;
-      if (opt.density->acts_at(it, st.total_iterations)) st.canonical = canon;
-      opt.density->step(it, st);
+      if (opt.density_control->acts_at(it, st.total_iterations)) st.canonical = canon;
+      opt.density_control->step(it, st);
     }
   }
 
@@ -486,7 +498,7 @@ struct Trainer::Impl {
     }
     const bool fine = opt.fine_frames && it >= fine_start;
     const LoadedFrame& fr = (fine ? *opt.fine_frames : frames)[size_t(order[order_pos++])];
-    const StepLosses L = evaluate(fr);
+    const StepLosses L = forward_backward(fr);
     last_loss = L.total;
     adam.step();
     density_control();
@@ -542,6 +554,8 @@ struct Trainer::Impl {
         for (int i = 0; i < n; ++i) av.posedirs.row(3 * i + k) = Qk.row(i).cast<float>();
       }
     }
+    // The settings, with the optional components' keys at their values for "component off";
+    // each component's bake below overwrites its own keys (learned_skin, garment...).
     av.metadata = nlohmann::json{
         {"trainer", "kinesplat reconstruct"},
         {"iterations", opt.iterations},
@@ -588,8 +602,8 @@ StepLosses Trainer::step() {
   return impl_->step();
 }
 
-StepLosses Trainer::evaluate(const LoadedFrame& frame) {
-  return impl_->evaluate(frame);
+StepLosses Trainer::forward_backward(const LoadedFrame& frame) {
+  return impl_->forward_backward(frame);
 }
 
 Adam& Trainer::optimizer() {

@@ -52,10 +52,11 @@ class Trainer {
   // One iteration: the next frame (shuffled per epoch from the seed), forward, losses,
   // backward, the optimiser, density control.
   StepLosses step();
-  // The losses on a frame at the current parameters and their gradients, left in the
-  // optimiser's groups' gradient buffers (by name), without an update. What step() computes
-  // before the optimiser (tests check it against finite differences).
-  StepLosses evaluate(const LoadedFrame& frame);
+  // Forward and backward on one frame at the current parameters: returns the losses and leaves
+  // their gradients in the optimiser's groups' gradient buffers (by name); no update. What step()
+  // computes before the optimiser (tests check the gradients against finite differences of the
+  // returned loss).
+  StepLosses forward_backward(const LoadedFrame& frame);
   Adam& optimizer();
   // The playback avatar (canonical Gaussians baked, skin weights, skeleton, template, pose
   // correctives when the model has any), ready for save_avatar.

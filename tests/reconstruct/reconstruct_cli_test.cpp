@@ -136,14 +136,16 @@ TEST(ReconstructCli, TrainsSavesAndEvaluates) {
       EXPECT_FALSE(fs::exists(av4)) << bad;
     }
   }
-  // Decoder sizes out of range are refused with the flag's name; nothing is written.
+  // Decoder sizes out of range are refused with the range and the value given; nothing is
+  // written.
   for (const char* bad : {" --triplane-res 1", " --triplane-channels 0", " --hidden 0"}) {
     const std::string av6 = (dir / "size.ksavatar").string();
     test::CliRun r6 = run_cli("reconstruct " + (dir / "data").string() + " --out " + av6 +
                               " --iters 1 --subdivide 0" + bad);
     EXPECT_EQ(r6.status, 1) << bad;
-    const std::string flag = std::string(bad).substr(1, std::string(bad).find(' ', 1) - 1);
-    EXPECT_NE(r6.output.find(flag + " must be"), std::string::npos) << r6.output;
+    const std::string value = std::string(bad).substr(std::string(bad).rfind(' ') + 1);
+    EXPECT_NE(r6.output.find(" must be in ["), std::string::npos) << r6.output;
+    EXPECT_NE(r6.output.find("got " + value), std::string::npos) << r6.output;
     EXPECT_FALSE(fs::exists(av6)) << bad;
   }
   // Options that would be ignored in the combination given are refused; nothing is written.

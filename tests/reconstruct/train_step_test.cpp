@@ -66,7 +66,7 @@ TEST(TrainStep, GradientMatchesFiniteDifferences) {
   auto check = [](Trainer& trainer, const LoadedFrame& fr, const std::string& group,
                   std::vector<size_t> idx, double h, double rel = 0.05, size_t from = 0) {
     AdamGroup& g = trainer.optimizer().group(group);
-    trainer.evaluate(fr);
+    trainer.forward_backward(fr);
     const std::vector<float> grad = *g.grads;
     if (idx.empty()) {
       std::vector<size_t> all(grad.size() - from);
@@ -82,9 +82,9 @@ TEST(TrainStep, GradientMatchesFiniteDifferences) {
       std::vector<float>& p = *g.params;
       const float keep = p[i];
       p[i] = keep + float(h);
-      const double lp = trainer.evaluate(fr).total;
+      const double lp = trainer.forward_backward(fr).total;
       p[i] = keep - float(h);
-      const double lm = trainer.evaluate(fr).total;
+      const double lm = trainer.forward_backward(fr).total;
       p[i] = keep;
       fd.push_back((lp - lm) / (2 * h));
       largest = std::max(largest, std::abs(fd.back()));
@@ -140,7 +140,7 @@ TEST(TrainStep, GradientMatchesFiniteDifferences) {
     // The six entries of the output layer's rows [r0, r0 + 3) (weights column-major, then the
     // biases: the last entries) with the largest gradient at the frame.
     auto head_rows = [&](Trainer& trainer, const LoadedFrame& fr, int r0) {
-      trainer.evaluate(fr);
+      trainer.forward_backward(fr);
       const std::vector<float>& grad = *trainer.optimizer().group("decoder_mlp").grads;
       const size_t n = grad.size(), w0 = n - size_t(outs) * size_t(hidden + 1);
       std::vector<size_t> idx;

@@ -106,7 +106,7 @@ TEST(Trainer, VertexColourResidualFitsFineDetailThroughDensityControl) {
     TrainOptions o = opt;
     o.iterations = 30;
     o.vertex_color.lr = lr_vc;
-    o.density = dc;
+    o.density_control = dc;
     Avatar a = train_avatar(model, ds, frames, o);
     EXPECT_NO_THROW(a.validate());
     *count = a.num_gaussians();
