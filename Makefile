@@ -10,7 +10,7 @@ DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libop
 # The perceive helper (Node): its packages pinned by its package-lock.json, its models by models.json.
 PERCEIVE_HELPER := helpers/perceive
 
-.PHONY: deps node perceive-helper viewer build test test-slurm test-sanitize fuzz fuzz-build fuzz-corpus demo demo-true-frames bench format clean
+.PHONY: deps node perceive-helper viewer gltf-validator build test test-slurm test-sanitize fuzz fuzz-build fuzz-corpus demo demo-true-frames bench format clean
 
 deps:
 	@missing=""; for p in $(DEB_PACKAGES); do \
@@ -21,7 +21,7 @@ deps:
 	  SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
 	else echo "kinesplat: all Debian packages present"; fi
-	@$(MAKE) --no-print-directory node perceive-helper viewer
+	@$(MAKE) --no-print-directory node perceive-helper viewer gltf-validator
 
 # Node.js and npm (Debian's where there are none): the perceive helper and the viewer run on them.
 node:
@@ -48,6 +48,15 @@ viewer: node
 	  || npm ci --no-audit --no-fund --loglevel=error; } && npm run --silent build \
 	  && echo "kinesplat: viewer built in viewer/dist" \
 	  || echo "kinesplat: WARNING: the browser viewer could not be installed or built (see above)"
+
+# Khronos glTF-Validator (npm gltf-validator, pinned by tests/gltf/validator/package-lock.json) for
+# the glTF export's test (docs/export.md); without it that test skips, saying so.
+gltf-validator: node
+	@cd tests/gltf/validator && if ! cmp -s package-lock.json node_modules/.kinesplat-lock 2>/dev/null; then \
+	  echo "kinesplat: installing glTF-Validator (npm ci in tests/gltf/validator)"; \
+	  npm ci --ignore-scripts --no-audit --no-fund --loglevel=error && cp package-lock.json node_modules/.kinesplat-lock \
+	  || echo "kinesplat: WARNING: glTF-Validator could not be installed (its test will skip)"; \
+	fi
 
 build:
 	cmake -S . -B $(BUILD_DIR) -G Ninja -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)

@@ -1,6 +1,9 @@
 // `kinesplat export`: an avatar as a standard 3DGS .ply (rest pose, or a pose
-// from PARAMS.json), or as a static web site that plays it (--web, src/web/).
+// from PARAMS.json), as a static web site that plays it (--web, src/web/), or as a glTF 2.0
+// binary with its skin and motions (--gltf, src/gltf/).
+#include <chrono>
 #include <cstdio>
+#include <string>
 
 #include "avatar/avatar.hpp"
 #include "avatar/pose.hpp"
@@ -8,14 +11,16 @@
 #include "core/error.hpp"
 #include "core/fileio.hpp"
 #include "gaussians/ply.hpp"
+#include "gltf/gltf_export.hpp"
 #include "web/web_export.hpp"
 
 namespace {
 
 ks::cli::CommandGroup group(80, [](CLI::App& app) {
   struct Args {
-    std::string avatar, out, pose, web;
+    std::string avatar, out, pose, web, gltf;
     std::vector<std::string> motions;
+    bool only_mesh = false, only_splats = false, both = false, vertex_colors = false;
   };
   auto args = std::make_shared<Args>();
   auto* sub = app.add_subcommand(
@@ -26,17 +31,52 @@ ks::cli::CommandGroup group(80, [](CLI::App& app) {
                               "Write a static web site playing the avatar into this folder "
                               "(docs/viewer.md) instead of a .ply");
   out->excludes(web);
+  auto* gltf = sub->add_option("--gltf", args->gltf,
+                               "Write a glTF 2.0 binary (.glb): the skinned mesh and the "
+                               "KHR_gaussian_splatting splats, with each --motion as an animation "
+                               "(docs/export.md)");
+  gltf->excludes(out)->excludes(web);
   sub->add_option("--motion", args->motions,
-                  "With --web: a motion to add and start with, a built-in name or an AMASS .npz "
-                  "(repeatable; the built-in motions are always included)")
-      ->needs(web);
+                  "With --web: a motion to add and start with (the built-in motions are always "
+                  "included); with --gltf: a motion to add as an animation. A built-in name or an "
+                  "AMASS .npz (repeatable)");
+  auto* m = sub->add_flag("--mesh", args->only_mesh, "With --gltf: only the skinned mesh");
+  auto* s = sub->add_flag("--splats", args->only_splats, "With --gltf: only the splats");
+  auto* both =
+      sub->add_flag("--both", args->both, "With --gltf: the mesh and the splats (the default)");
+  auto* vc = sub->add_flag("--vertex-colors", args->vertex_colors,
+                           "With --gltf: the mesh's colour as COLOR_0 (the default and, for now, "
+                           "the only colouring; no texture atlas yet)");
+  m->excludes(s)->excludes(both)->needs(gltf);
+  s->excludes(both)->needs(gltf);
+  both->needs(gltf);
+  vc->needs(gltf)->excludes(s);
   sub->add_option("--pose", args->pose,
                   "Pose parameters JSON (global_orient, body_pose, transl, "
                   "...); default: rest");
   sub->callback([args] {
-    if (args->out.empty() && args->web.empty())
-      throw ks::Error("export: give --out FILE.ply or --web DIR");
+    if (args->out.empty() && args->web.empty() && args->gltf.empty())
+      throw ks::Error("export: give --out FILE.ply or --web DIR (or --gltf FILE.glb)");
+    if (!args->out.empty() && !args->motions.empty())
+      throw ks::Error("export: --motion applies to --web and --gltf, not --out (use --pose)");
     const ks::Avatar avatar = ks::load_avatar(args->avatar);
+    if (!args->gltf.empty()) {
+      if (!args->pose.empty()) throw ks::Error("export: --pose applies to --out, not --gltf");
+      ks::GltfExportOptions opt;
+      if (args->only_mesh) opt.splats = false;
+      if (args->only_splats) opt.mesh = false;
+      std::vector<ks::Motion> motions;
+      for (const auto& name : args->motions) motions.push_back(ks::load_motion(name));
+      const auto t0 = std::chrono::steady_clock::now();
+      ks::export_gltf(args->gltf, avatar, motions, opt);
+      const double secs =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      std::printf("export: wrote %s%s%s (%d joints, %zu animations) to %s in %.2f s\n",
+                  opt.mesh ? "the skinned mesh" : "", opt.mesh && opt.splats ? " and " : "",
+                  opt.splats ? (std::to_string(avatar.num_gaussians()) + " splats").c_str() : "",
+                  avatar.num_joints(), motions.size(), args->gltf.c_str(), secs);
+      return;
+    }
     if (!args->web.empty()) {
       if (!args->pose.empty()) throw ks::Error("export: --pose applies to --out, not --web");
       ks::WebExportOptions opt;
