@@ -1,6 +1,9 @@
 #include "synth/run.hpp"
 
+#include <Eigen/Geometry>
+#include <cmath>
 #include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
@@ -8,6 +11,7 @@
 #include "core/progress.hpp"
 #include "dataset/dataset.hpp"
 #include "io/image_io.hpp"
+#include "io/video.hpp"
 #include "motion/motion.hpp"
 #include "perceive/openpose.hpp"
 #include "synth/keypoints.hpp"
@@ -47,12 +51,44 @@ Eigen::MatrixXd subsample_rows(const Eigen::MatrixXd& V, int stride) {
   return out;
 }
 
+// `front` carried round the vertical axis through `pivot` (the point it looks at) by
+// `azimuth_deg`, at the same distance and height, still looking at the pivot.
+Camera orbit_camera(const Camera& front, const Eigen::Vector3d& pivot, double azimuth_deg) {
+  if (azimuth_deg == 0) return front;
+  const Eigen::Vector3d off = front.centre() - pivot;
+  const double a = azimuth_deg * M_PI / 180.0;
+  const Eigen::Vector3d eye =
+      pivot + Eigen::AngleAxisd(a, Eigen::Vector3d::UnitY()).toRotationMatrix() * off;
+  return Camera::look_at(eye, pivot, Eigen::Vector3d::UnitY(), front.width, front.height, front.fx,
+                         front.fy, front.cx, front.cy);
+}
+
+// The middle of the bounding box of every row of every matrix (what synth_camera looks at).
+Eigen::Vector3d box_centre(const std::vector<const Eigen::MatrixXd*>& sets) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = Eigen::Vector3d::Constant(-1e30);
+  for (const auto* P : sets)
+    for (long i = 0; i < P->rows(); ++i) {
+      lo = lo.cwiseMin(P->row(i).transpose());
+      hi = hi.cwiseMax(P->row(i).transpose());
+    }
+  return 0.5 * (lo + hi);
+}
+
 }  // namespace
 
 void run_synth(const SynthRunConfig& cfg) {
   if (cfg.out_dir.empty()) throw Error("synth: no output directory");
   if (cfg.width < 8 || cfg.height < 8) throw Error("synth: image size must be at least 8x8");
-  if (cfg.frames < 1) throw Error("synth: --frames must be at least 1");
+  if (cfg.frames < 1)
+    throw Error("synth: the training split needs at least 1 frame, got " +
+                std::to_string(cfg.frames));
+  if (cfg.camera != "fixed" && cfg.camera != "orbit")
+    throw Error("synth: camera \"" + cfg.camera + "\": expected fixed or orbit");
+  if (cfg.video && find_ffmpeg().empty())
+    throw Error("synth: the training video needs ffmpeg, which was not found on PATH");
+  const Motion train_motion = load_motion(cfg.motion, cfg.frames);
+  if (train_motion.frames.empty())
+    throw Error("synth: the motion \"" + cfg.motion + "\" has no frames");
   std::shared_ptr<const BodyModel> model;
   if (cfg.body_model == "default")
     model = std::shared_ptr<const BodyModel>(&default_body_model(), [](const BodyModel*) {});
@@ -69,7 +105,7 @@ void run_synth(const SynthRunConfig& cfg) {
 
   StagedDir staged(cfg.out_dir);
   const auto root = staged.staging();
-  const int total = 1 + cfg.frames + int(kSynthTestPoses.size()) * 4;
+  const int total = 1 + int(train_motion.frames.size()) + int(kSynthTestPoses.size()) * 4;
   Progress progress("synth", total);
   int done = 0;
   auto tick = [&] {
@@ -77,17 +113,16 @@ void run_synth(const SynthRunConfig& cfg) {
     if (cfg.progress) progress.update(done);
   };
 
-  // The standing pose and the turn, framed by one fixed front camera.
+  // The standing pose and the training motion, framed by one fixed front camera.
   const BodyParams stand = standing_pose();
   const PosedPerson stand_posed = pose_synth_person(person, stand);
-  const Motion turn = builtin_motion("turn", cfg.frames);
-  std::vector<Eigen::MatrixXd> turn_sub;
-  turn_sub.reserve(turn.frames.size());
-  for (const auto& f : turn.frames)
-    turn_sub.push_back(subsample_rows(pose_synth_person(person, f).vertices, 5));
+  std::vector<Eigen::MatrixXd> motion_sub;
+  motion_sub.reserve(train_motion.frames.size());
+  for (const auto& f : train_motion.frames)
+    motion_sub.push_back(subsample_rows(pose_synth_person(person, f).vertices, 5));
   const Eigen::MatrixXd stand_sub = subsample_rows(stand_posed.vertices, 5);
   std::vector<const Eigen::MatrixXd*> framing = {&stand_sub};
-  for (const auto& t : turn_sub) framing.push_back(&t);
+  for (const auto& t : motion_sub) framing.push_back(&t);
   const Camera front = synth_camera(framing, 0.0, W, H);
 
   // Photo, its mask and keypoints, the subject's ground truth.
@@ -134,6 +169,10 @@ void run_synth(const SynthRunConfig& cfg) {
     subject["mask"] = "photo_mask.png";
     subject["keypoints"] = "photo_keypoints.json";
     subject["appearance"] = person.appearance.to_json();
+    subject["train"] = {{"motion", cfg.motion},
+                        {"camera", cfg.camera},
+                        {"frames", train_motion.frames.size()},
+                        {"fps", train_motion.fps}};
     subject["mesh"] = {{"vertices", person.rest.rows()},
                        {"faces", person.faces.rows()},
                        {"subdivision_levels", cfg.options.subdivision_levels}};
@@ -147,6 +186,7 @@ void run_synth(const SynthRunConfig& cfg) {
     d.betas = person.betas;
     return d;
   };
+  // Renders one frame into the dataset; returns its image.
   auto add_frame = [&](Dataset& d, const std::filesystem::path& dir, const BodyParams& pose,
                        const PosedPerson& posed, const Camera& cam) {
     const MeshRenderOutput r = render_synth(person, posed, cam, cfg.supersample, white);
@@ -162,15 +202,32 @@ void run_synth(const SynthRunConfig& cfg) {
     f.camera = cam;
     d.frames.push_back(std::move(f));
     tick();
+    return r.rgb;
   };
 
-  // Training set: the turn from the fixed front camera.
+  // Training set: the motion from the fixed front camera, or from one orbiting the body at the
+  // same distance (azimuth 360 i / N for frame i, looking at the same centre).
   {
     const auto dir = root / "train";
     Dataset d = make_dataset();
-    for (const auto& pose : turn.frames)
-      add_frame(d, dir, pose, pose_synth_person(person, pose), front);
+    std::unique_ptr<Mp4Writer> video;
+    if (cfg.video) {
+      std::filesystem::create_directories(dir);
+      VideoOptions vo;
+      vo.fps = train_motion.fps;
+      video = std::make_unique<Mp4Writer>((dir / "video.mp4").string(), W, H, vo);
+    }
+    const Eigen::Vector3d pivot = box_centre(framing);
+    const size_t N = train_motion.frames.size();
+    for (size_t i = 0; i < N; ++i) {
+      const BodyParams& pose = train_motion.frames[i];
+      const Camera cam =
+          cfg.camera == "orbit" ? orbit_camera(front, pivot, 360.0 * double(i) / double(N)) : front;
+      const Image rgb = add_frame(d, dir, pose, pose_synth_person(person, pose), cam);
+      if (video) video->add(rgb);
+    }
     d.save(dir.string());
+    if (video) video->finish();
   }
   // Test set: 8 novel poses, each from the front, left, right and back.
   {

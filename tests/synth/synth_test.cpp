@@ -17,6 +17,7 @@
 #include "core/fileio.hpp"
 #include "dataset/dataset.hpp"
 #include "io/image_io.hpp"
+#include "io/video.hpp"
 #include "motion/motion.hpp"
 
 namespace fs = std::filesystem;
@@ -275,6 +276,61 @@ TEST(Synth, TinyRunWritesEverything) {
   cfg.body_model = tmp / "no_such_model.npz";
   EXPECT_THROW(run_synth(cfg), Error);
   EXPECT_FALSE(fs::exists(bad));
+}
+
+// The training split along another motion, seen by an orbiting camera, with its video: the
+// frames carry the motion's own poses, the cameras go once round the body at one distance and
+// height, and every camera still sees the person.
+TEST(Synth, MotionAndOrbitTrainingSplit) {
+  const test::TempDir tmp("ks_synth_motion");
+  const fs::path out = tmp.path() / "run";
+  SynthRunConfig cfg;
+  cfg.seed = 4;
+  cfg.out_dir = out.string();
+  cfg.width = 64;
+  cfg.height = 96;
+  cfg.frames = 8;
+  cfg.motion = "walk";
+  cfg.camera = "orbit";
+  cfg.video = !find_ffmpeg().empty();
+  cfg.options.subdivision_levels = 0;
+  cfg.progress = false;
+  run_synth(cfg);
+  const Dataset train = Dataset::load((out / "train").string());
+  ASSERT_EQ(train.frames.size(), 8u);
+  const Motion walk = builtin_motion("walk", 8);
+  const SynthPerson person = make_synth_person(default_model(), "default", 4, cfg.options);
+  const Eigen::Vector3d c0 = train.frames[0].camera.centre();
+  for (size_t i = 0; i < 8; ++i) {
+    const BodyParams truth = synth_params(person, walk.frames[i]);
+    EXPECT_LT((train.frames[i].pose.body_pose - truth.body_pose).norm(), 1e-6) << i;
+    EXPECT_LT((train.frames[i].pose.transl - truth.transl).norm(), 1e-6) << i;
+    const Eigen::Vector3d c = train.frames[i].camera.centre();
+    EXPECT_NEAR(c.y(), c0.y(), 1e-9) << i;  // level, at one height
+    const Image m = train.load_mask((out / "train").string(), int(i));
+    double cover = 0;
+    for (float v : m.data) cover += v;
+    EXPECT_GT(cover, 0.03 * 64 * 96) << "frame " << i << " sees the person";
+  }
+  // A quarter of the way round: the camera on the body's left (+X), as far from the pivot.
+  const Eigen::Vector3d c2 = train.frames[2].camera.centre();
+  EXPECT_GT(c2.x() - c0.x(), 0.5 * std::abs(c0.z() - c2.z()));
+  const nlohmann::json subject = read_json((out / "subject.json").string());
+  EXPECT_EQ(subject["train"]["motion"], "walk");
+  EXPECT_EQ(subject["train"]["camera"], "orbit");
+  if (cfg.video) {
+    EXPECT_GT(fs::file_size(out / "train/video.mp4"), 1000u);
+  }
+  // An unknown motion or camera: an error, nothing written.
+  for (const auto& [motion, camera] :
+       {std::pair<std::string, std::string>{"jump", "fixed"}, {"walk", "sideways"}}) {
+    SynthRunConfig bad = cfg;
+    bad.out_dir = (tmp.path() / "bad").string();
+    bad.motion = motion;
+    bad.camera = camera;
+    EXPECT_THROW(run_synth(bad), Error) << motion << " " << camera;
+    EXPECT_FALSE(fs::exists(tmp.path() / "bad"));
+  }
 }
 
 }  // namespace ks
