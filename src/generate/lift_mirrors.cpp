@@ -50,11 +50,7 @@ std::vector<int> mirror_front_back(const Eigen::MatrixXd& V, const Eigen::Matrix
 Mirrors find_mirrors(const Eigen::MatrixXd& V, const Eigen::MatrixXi& F,
                      const Eigen::MatrixXd& normals, const SkinJoints& skin_joints,
                      const LiftBody& body, const LiftOptions& o) {
-  double s = 0;  // the mean edge length, from every 37th edge
-  const auto edges = mesh_edges(F);
-  for (size_t e = 0; e < edges.size(); e += 37)
-    s += (V.row(edges[e].first) - V.row(edges[e].second)).norm();
-  const double spacing = s / double((edges.size() + 36) / 37);
+  const double spacing = mean_face_edge_length(V, F);
   const Eigen::MatrixXd& joints = body.rest_state.rest_joints;
   Mirrors m;
   if (o.mirror_left_right)

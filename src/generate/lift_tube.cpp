@@ -25,11 +25,8 @@ LiftTube lift_tube(const Image& mask, const LiftBody& body, const Camera& cam,
   if (t.garment.spans_legs && o.garment) {
     t.skirt.hem = t.garment.hem;
     t.skirt.half_width = t.garment.half_width;
-    double edge = 0;
-    const auto edges = mesh_edges(P.faces);
-    for (const auto& [a, b] : edges) edge += (P.rest.row(a) - P.rest.row(b)).norm();
     t.proxy = make_skirt_proxy(P.rest, P.labels, body.rest_state.rest_joints, sj,
-                               edge / edges.size(), t.skirt);
+                               mean_face_edge_length(P.rest, P.faces), t.skirt);
   }
   return t;
 }
