@@ -25,7 +25,7 @@ std::vector<int> mirror_front_back(const Eigen::MatrixXd& V, const Eigen::Matrix
                                    const Eigen::MatrixXd& joints, double radius) {
   const int J = int(parents.size());
   std::vector<int> child(static_cast<size_t>(J), -1);
-  for (int j = J - 1; j > 0; --j) child[size_t(parents[size_t(j)])] = j;
+  for (int j = 0; j < J; ++j) child[size_t(j)] = first_child(parents, j);
   const PointGrid grid(V, radius);
   std::vector<int> out(size_t(V.rows()), -1);
 #pragma omp parallel for schedule(static)
