@@ -89,6 +89,20 @@ Detection run_detector(PerceiveHelper& helper, const Image& rgb, const std::stri
                 std::to_string(rgb.pixel_count()));
   d.mask_prob = Image(rgb.width, rgb.height, 1);
   for (size_t i = 0; i < mb.size(); ++i) d.mask_prob.data[i] = mb[i] / 255.0f;
+  if (r.contains("blazepose")) {
+    const auto& bp = r["blazepose"];
+    if (!bp.is_array() || bp.size() != 33)
+      throw Error("perceive helper: malformed answer (blazepose is not 33 landmarks)");
+    for (const auto& p : bp) {
+      if (!p.is_array() || p.size() != 4)
+        throw Error(
+            "perceive helper: malformed answer (a blazepose landmark is not [x, y, visibility, "
+            "presence])");
+      d.blazepose.push_back({number(p[0], "blazepose x"), number(p[1], "blazepose y"),
+                             number(p[2], "blazepose visibility"),
+                             number(p[3], "blazepose presence")});
+    }
+  }
   if (r.contains("face") && r["face"].is_object()) {
     const auto& f = r["face"];
     const auto& lm = f["landmarks"];

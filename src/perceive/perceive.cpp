@@ -80,6 +80,32 @@ Body25 body25_from_detector(const std::vector<std::array<double, 3>>& coco17, fl
   return body25_from_coco17(c);
 }
 
+int body25_add_feet(Body25& body, const std::vector<std::array<double, 4>>& bp,
+                    float min_visibility) {
+  if (bp.size() != 33 || !(min_visibility > 0)) return 0;
+  // BlazePose's landmarks: 27 / 28 left / right ankle, 29 / 30 heel, 31 / 32 foot index.
+  struct Side {
+    int ankle, heel, toe;        // BlazePose
+    int k_ankle, k_heel, k_toe;  // BODY_25
+  };
+  using namespace body25;
+  const Side sides[2] = {{27, 29, 31, kLAnkle, kLHeel, kLBigToe},
+                         {28, 30, 32, kRAnkle, kRHeel, kRBigToe}};
+  int added = 0;
+  for (const Side& sd : sides) {
+    const auto &a = bp[size_t(sd.ankle)], &h = bp[size_t(sd.heel)], &t = bp[size_t(sd.toe)];
+    if (h[2] < min_visibility || t[2] < min_visibility) continue;
+    const Keypoint2D& ankle = body[size_t(sd.k_ankle)];
+    if (!ankle.present()) continue;
+    const double foot = std::hypot(h[0] - t[0], h[1] - t[1]);
+    if (std::hypot(a[0] - ankle.x, a[1] - ankle.y) > std::max(foot, 1.0)) continue;
+    body[size_t(sd.k_heel)] = {h[0], h[1], h[2]};
+    body[size_t(sd.k_toe)] = {t[0], t[1], t[2]};
+    added += 2;
+  }
+  return added;
+}
+
 namespace {
 
 // What run_perceive gathers before it writes: the subject's parts and perceive.json.
@@ -227,13 +253,19 @@ nlohmann::json detector_info(const std::string& dir, const PerceiveHelper& helpe
 void keypoints_from_detection(const Detection& d, const PerceiveOptions& opts, Subject& s,
                               PerceiveReport& rep) {
   s.person.body = body25_from_detector(d.coco17, opts.min_keypoint_score);
+  const int feet = body25_add_feet(s.person.body, d.blazepose, opts.min_foot_visibility);
   rep.keypoints_source = "detector";
-  s.info["keypoints"] = {{"source", "detector"},
-                         {"model",
-                          "movenet-thunder (COCO-17 -> BODY_25; kNeck and kMidHip "
-                          "derived; toes and heels absent)"},
-                         {"min_score", opts.min_keypoint_score},
-                         {"coco17", d.response["keypoints"]}};
+  s.info["keypoints"] = {
+      {"source", "detector"},
+      {"model", feet > 0 ? "movenet-thunder (COCO-17 -> BODY_25; kNeck and kMidHip "
+                           "derived) + blazepose-full heels and foot indices as BODY_25 "
+                           "heels and big toes (small toes absent)"
+                         : "movenet-thunder (COCO-17 -> BODY_25; kNeck and kMidHip "
+                           "derived; toes and heels absent)"},
+      {"min_score", opts.min_keypoint_score},
+      {"min_foot_visibility", opts.min_foot_visibility},
+      {"feet_points", feet},
+      {"coco17", d.response["keypoints"]}};
 }
 
 // The detector's segmentation, carried onto the photo's edges (guided filter), thresholded.

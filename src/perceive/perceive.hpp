@@ -24,6 +24,11 @@ struct PerceiveOptions {
   std::string mask_path;       // the user's mask image (the photo's size)
   double keypoints_pixel_centre = 0.0;  // see KeypointReadOptions (0: OpenPose/COCO, 0.5: ours)
   float min_keypoint_score = 0.3f;      // detector keypoints below this score are written as absent
+  // The heels and big toes (the foot index) from BlazePose's landmarks where their visibility is
+  // at least this (MoveNet's 17 points have no feet); 0 or less: none. Off by default: on synth
+  // seeds 0-14 they moved the fit's median PA-MPJPE from 18.7 to 19.1 mm (0-9) and 18.5 to 20.4 mm
+  // (10-14) with 0.5, better on some people and worse on others (docs/fit.md).
+  float min_foot_visibility = 0.0f;
   // The detector's segmentation is a 256 x 256 map stretched over the person (about 3 photo pixels
   // per cell for a person filling a 768-pixel image): it fills narrow gaps (armpits) and blurs the
   // outline. A guided filter with the photo as guide carries it onto the photo's edges: window
@@ -65,5 +70,13 @@ PerceiveReport run_perceive(const std::string& photo, const std::string& out_dir
 // A detector's answer turned into BODY_25 (in the detector's pixel convention, which is ours):
 // COCO-17 keypoints [x, y, score] -> BODY_25 with scores below `min_score` absent.
 Body25 body25_from_detector(const std::vector<std::array<double, 3>>& coco17, float min_score);
+
+// BlazePose's heel and foot-index landmarks (33 landmarks [x, y, visibility, presence]) as
+// BODY_25's heels and big toes, each side where both are visible at least `min_visibility`, the
+// side's ankle is in `body` and BlazePose's own ankle agrees with it (within the foot's length:
+// a side BlazePose swapped is left out); confidence = the visibility. Returns how many points
+// were added.
+int body25_add_feet(Body25& body, const std::vector<std::array<double, 4>>& blazepose,
+                    float min_visibility);
 
 }  // namespace ks
