@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "core/error.hpp"
+#include "core/names.hpp"
 
 namespace ks {
 
@@ -179,10 +180,7 @@ const char* to_string(KeypointConvention c) {
 }
 
 KeypointConvention parse_keypoint_convention(const std::string& name) {
-  const auto& n = keypoint_convention_names();
-  for (size_t i = 0; i < n.size(); ++i)
-    if (n[i] == name) return KeypointConvention(i);
-  throw Error("keypoint convention \"" + name + "\": expected joints or coco");
+  return parse_name<KeypointConvention>(keypoint_convention_names(), name, "keypoint convention");
 }
 
 }  // namespace ks

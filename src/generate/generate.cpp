@@ -10,6 +10,7 @@
 
 #include "core/error.hpp"
 #include "core/fileio.hpp"
+#include "core/names.hpp"
 #include "core/process.hpp"
 #include "core/progress.hpp"
 #include "dataset/dataset.hpp"
@@ -296,13 +297,12 @@ const std::vector<std::string>& generator_names() {
   return n;
 }
 
-const char* to_string(Generator g) { return generator_names()[size_t(g)].c_str(); }
+const char* to_string(Generator g) {
+  return generator_names()[size_t(g)].c_str();
+}
 
 Generator parse_generator(const std::string& name) {
-  const auto& n = generator_names();
-  for (size_t i = 0; i < n.size(); ++i)
-    if (n[i] == name) return Generator(i);
-  throw Error("generator \"" + name + "\": expected lift, command or frames");
+  return parse_name<Generator>(generator_names(), name, "generator");
 }
 
 }  // namespace ks

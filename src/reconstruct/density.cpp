@@ -6,6 +6,7 @@
 #include <numeric>
 
 #include "core/error.hpp"
+#include "core/names.hpp"
 #include "reconstruct/density.hpp"
 #include "reconstruct/density_ops.hpp"
 
@@ -272,9 +273,7 @@ const std::vector<std::string>& density_control_names() {
 }
 
 void require_density_name(const std::string& name) {
-  const auto& names = density_control_names();
-  if (std::find(names.begin(), names.end(), name) == names.end())
-    throw Error("density control \"" + name + "\": expected gpdc, vertex, naive or off");
+  (void)parse_name<int>(density_control_names(), name, "density control");
 }
 
 std::unique_ptr<DensityControl> make_density_control(const std::string& name,
