@@ -11,6 +11,7 @@
 #include "core/error.hpp"
 #include "core/fileio.hpp"
 #include "gaussians/ply.hpp"
+#include "gltf/avatar_bvh.hpp"
 #include "gltf/gltf_export.hpp"
 #include "web/web_export.hpp"
 
@@ -18,7 +19,7 @@ namespace {
 
 ks::cli::CommandGroup group(80, [](CLI::App& app) {
   struct Args {
-    std::string avatar, out, pose, web, gltf;
+    std::string avatar, out, pose, web, gltf, bvh;
     std::vector<std::string> motions;
     bool only_mesh = false, only_splats = false, both = false, vertex_colors = false;
   };
@@ -36,10 +37,15 @@ ks::cli::CommandGroup group(80, [](CLI::App& app) {
                                "KHR_gaussian_splatting splats, with each --motion as an animation "
                                "(docs/export.md)");
   gltf->excludes(out)->excludes(web);
-  sub->add_option("--motion", args->motions,
-                  "With --web: a motion to add and start with (the built-in motions are always "
-                  "included); with --gltf: a motion to add as an animation. A built-in name or an "
-                  "AMASS .npz (repeatable)");
+  auto* bvh = sub->add_option("--bvh", args->bvh,
+                              "Write the one --motion as BVH on the avatar's skeleton (joint "
+                              "names, offsets in metres; docs/export.md)");
+  bvh->excludes(out)->excludes(web)->excludes(gltf);
+  sub->add_option(
+      "--motion", args->motions,
+      "With --web: a motion to add and start with (the built-in motions are always "
+      "included); with --gltf: a motion to add as an animation; with --bvh: the motion. "
+      "A built-in name, an AMASS .npz or a .bvh (repeatable)");
   auto* m = sub->add_flag("--mesh", args->only_mesh, "With --gltf: only the skinned mesh");
   auto* s = sub->add_flag("--splats", args->only_splats, "With --gltf: only the splats");
   auto* both =
@@ -55,11 +61,22 @@ ks::cli::CommandGroup group(80, [](CLI::App& app) {
                   "Pose parameters JSON (global_orient, body_pose, transl, "
                   "...); default: rest");
   sub->callback([args] {
-    if (args->out.empty() && args->web.empty() && args->gltf.empty())
-      throw ks::Error("export: give --out FILE.ply or --web DIR (or --gltf FILE.glb)");
+    if (args->out.empty() && args->web.empty() && args->gltf.empty() && args->bvh.empty())
+      throw ks::Error(
+          "export: give --out FILE.ply or --web DIR (or --gltf FILE.glb, --bvh FILE.bvh)");
     if (!args->out.empty() && !args->motions.empty())
       throw ks::Error("export: --motion applies to --web and --gltf, not --out (use --pose)");
     const ks::Avatar avatar = ks::load_avatar(args->avatar);
+    if (!args->bvh.empty()) {
+      if (!args->pose.empty()) throw ks::Error("export: --pose applies to --out, not --bvh");
+      if (args->motions.size() != 1)
+        throw ks::Error("export: --bvh writes one motion: give exactly one --motion");
+      const ks::Motion m = ks::load_motion(args->motions[0]);
+      ks::write_bvh(args->bvh, ks::avatar_motion_bvh(avatar, m));
+      std::printf("export: wrote motion \"%s\" (%zu frames at %.3g fps, %d joints) as BVH to %s\n",
+                  m.name.c_str(), m.frames.size(), m.fps, avatar.num_joints(), args->bvh.c_str());
+      return;
+    }
     if (!args->gltf.empty()) {
       if (!args->pose.empty()) throw ks::Error("export: --pose applies to --out, not --gltf");
       ks::GltfExportOptions opt;

@@ -9,6 +9,7 @@
 #include "core/math.hpp"
 #include "core/rotation.hpp"
 #include "motion/amass.hpp"
+#include "motion/bvh_motion.hpp"
 
 namespace ks {
 
@@ -246,6 +247,8 @@ Motion load_motion(const std::string& name_or_path, int frames) {
   const auto n = name_or_path.size();
   if (n > 4 && name_or_path.compare(n - 4, 4, ".npz") == 0)
     return load_amass_npz(name_or_path, frames);  // AMASS (src/motion/amass.hpp)
+  if (n > 4 && name_or_path.compare(n - 4, 4, ".bvh") == 0)
+    return load_bvh_motion(name_or_path, frames);  // BVH (src/motion/bvh_motion.hpp)
   throw Error("unknown motion \"" + name_or_path +
               "\": not a built-in motion (see `kinesplat motions`)");
 }

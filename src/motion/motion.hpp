@@ -29,7 +29,7 @@ struct MotionInfo {
 const std::vector<MotionInfo>& builtin_motions();
 // frames = 0: the motion's default length. Throws ks::Error for an unknown name.
 Motion builtin_motion(const std::string& name, int frames = 0);
-// A built-in name, or a file (AMASS .npz; see docs/formats.md).
+// A built-in name, or a file (AMASS .npz, BVH .bvh; see docs/formats.md).
 Motion load_motion(const std::string& name_or_path, int frames = 0);
 
 // A natural standing pose: the rest T-pose with the arms lowered `arm_down_degrees` from the
