@@ -113,13 +113,14 @@ std::string convention_name(const Convention& c, int j, bool poser) {
   if (!is_right(j)) return c.joints[j];
   std::string left = c.joints[mirror(j)];
   if (left.empty()) return "";
-  if (poser) return "r" + left.substr(1);
-  return "right" + left.substr(4);
+  std::string out = poser ? "r" : "right";
+  out.append(left, poser ? 1 : 4, std::string::npos);
+  return out;
 }
 
 }  // namespace
 
-std::vector<int> map_bvh_to_smpl(const Bvh& bvh, const std::string& what) {
+std::vector<int> map_bvh_to_smpl(const Bvh& bvh, const std::string& what, std::string* convention) {
   std::map<std::string, int> by_name;
   for (size_t k = 0; k < bvh.joints.size(); ++k)
     by_name.emplace(normalise(bvh.joints[k].name), int(k));
@@ -143,6 +144,7 @@ std::vector<int> map_bvh_to_smpl(const Bvh& bvh, const std::string& what) {
       if (it != by_name.end()) map[size_t(j)] = it->second;
     }
   }
+  if (convention) *convention = used;
   using namespace smpl_joint;
   std::string missing;
   for (int j : {kPelvis, kLeftHip, kRightHip, kLeftKnee, kRightKnee, kLeftAnkle, kRightAnkle,
@@ -164,7 +166,11 @@ Motion bvh_to_motion(const Bvh& bvh, const std::string& name, const std::vector<
   using namespace smpl_joint;
   if (parents.size() != 24 || rest.rows() != 24 || rest.cols() != 3)
     throw Error(what + ": the body skeleton must be SMPL's 24 joints");
-  const std::vector<int> map = map_bvh_to_smpl(bvh, what);
+  std::string convention;
+  const std::vector<int> map = map_bvh_to_smpl(bvh, what, &convention);
+  // SMPL-named files hold SMPL poses: their rest is SMPL's T-pose whatever body shape their
+  // offsets come from, so they get no rest correction.
+  const bool smpl_poses = convention == "SMPL";
   const Eigen::MatrixXd P = bvh.rest_positions();
   auto bpos = [&](int j) -> Eigen::Vector3d { return P.row(map[size_t(j)]).transpose(); };
   auto body = [&](int j) -> Eigen::Vector3d { return rest.row(j).transpose(); };
@@ -188,9 +194,9 @@ Motion bvh_to_motion(const Bvh& bvh, const std::string& name, const std::vector<
   const Eigen::Vector3d lat_body = body(kLeftHip) - body(kRightHip),
                         lat_bvh = bpos(kLeftHip) - bpos(kRightHip);
   std::vector<Eigen::Matrix3d> Q(24, Eigen::Matrix3d::Identity());
-  if (lat_bvh.norm() > 1e-9 && lat_bvh.cross(up_bvh).norm() > 1e-9)
+  if (!smpl_poses && lat_bvh.norm() > 1e-9 && lat_bvh.cross(up_bvh).norm() > 1e-9)
     Q[0] = frame(lat_bvh, up_bvh) * frame(lat_body, up_body).transpose();
-  for (int j = 1; j < 24; ++j) {
+  for (int j = 1; j < 24 && !smpl_poses; ++j) {
     const int p = parents[size_t(j)];
     Q[size_t(j)] = Q[size_t(p)];
     const int c = first_child(parents, j);

@@ -18,6 +18,8 @@
 // body's rest bone (joint -> its first child) onto the BVH's rest bone (accumulated down the chain;
 // the root's aligns the up and left-right axes), and in each frame the body joint's world rotation
 // is the BVH joint's world rotation times Q_j. Unmapped body joints keep their parent's rotation.
+// SMPL-named files (kinesplat's own `export --bvh`) are SMPL poses, shape-independent: their
+// rotations are taken as they are (no rest correction), whichever body's offsets they carry.
 // The root's translation is the mapped pelvis joint's motion relative to frame 0, scaled by the
 // ratio of the body's left leg length (hip -> knee -> ankle) to the BVH's, so centimetre, inch
 // and metre files all move the body by its own stride. The BVH's world must be Y up (the
@@ -33,8 +35,10 @@ namespace ks {
 
 // The BVH joint mapped to each of SMPL's 24 joints (-1: none). Throws ks::Error naming `what`
 // and the body joints it could not place (and the file's joint names) when the pelvis, a hip,
-// knee, ankle, shoulder or elbow is missing.
-std::vector<int> map_bvh_to_smpl(const Bvh& bvh, const std::string& what);
+// knee, ankle, shoulder or elbow is missing. `convention` (optional): "SMPL", "Mixamo", "CMU" or
+// "Poser", the names the file was read with.
+std::vector<int> map_bvh_to_smpl(const Bvh& bvh, const std::string& what,
+                                 std::string* convention = nullptr);
 
 // The BVH as a Motion on the skeleton (parents, rest_joints: SMPL's 24 joints), named `name`.
 // frames > 0: keep at most this many (after subsampling files above 45 fps to about 30 fps).

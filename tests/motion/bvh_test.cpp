@@ -95,6 +95,32 @@ TEST(Bvh, ExportImportGivesTheSameJointRotations) {
   EXPECT_LT(worst_t, 1e-6);
 }
 
+TEST(Bvh, SmplNamedFilesKeepTheirRotationsOnAnotherShape) {
+  // The same poses on a body with other proportions (longer legs, wider shoulders).
+  Eigen::MatrixXd rest = body_rest();
+  for (int j = 1; j < 24; ++j) rest.row(j).x() *= 1.3;
+  for (int j : {1, 2, 4, 5, 7, 8, 10, 11}) rest.row(j).y() -= 0.1 * (j > 3);
+  const Motion walk = builtin_motion("walk", 5);
+  std::vector<Eigen::MatrixXd> poses;
+  std::vector<Eigen::Vector3d> transl;
+  for (const auto& f : walk.frames) {
+    poses.push_back(full_pose(f));
+    transl.push_back(f.transl);
+  }
+  const Bvh b =
+      poses_to_bvh(smpl_parents(), default_body_model().joint_names, rest, poses, transl, walk.fps);
+  const Motion m =
+      bvh_to_motion(parse_bvh(format_bvh(b), "shaped.bvh"), "shaped", smpl_parents(), body_rest());
+  for (size_t f = 0; f < m.frames.size(); ++f) {
+    const Eigen::MatrixXd a = full_pose(walk.frames[f]), c = full_pose(m.frames[f]);
+    for (int j = 0; j < 24; ++j)
+      EXPECT_LT((axis_angle_to_matrix<double>(a.row(j).transpose()) -
+                 axis_angle_to_matrix<double>(c.row(j).transpose()))
+                    .norm(),
+                1e-6);
+  }
+}
+
 // A BVH on SMPL's structure with the given names per SMPL joint (22 body joints; "" = skipped,
 // its child then hangs on its parent), extra zero-offset joints inserted above some joints
 // (`insert_above`: name -> the extra joint's name), rest positions scaled by `scale`, the arms
