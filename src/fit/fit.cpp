@@ -213,6 +213,8 @@ class Fitter {
     p.global_orient = Eigen::Vector3d(0, facing ? 0.0 : M_PI, 0);
     p.body_pose = Eigen::VectorXd::Zero(3 * L.pose_joints);
     p.betas = Eigen::VectorXd::Zero(L.num_betas);
+    const int given = std::min(L.num_betas, int(o_.initial_betas.size()));
+    if (given > 0) p.betas.head(given) = o_.initial_betas.head(given);
     auto mid = [&](int a, int b, Eigen::Vector2d* out) {
       if (!has(a) || !has(b)) return false;
       *out = 0.5 * (kp(a) + kp(b));

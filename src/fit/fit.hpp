@@ -61,6 +61,10 @@ struct FitOptions {
   double focal = 0;
   double fov_degrees = 40.0;
   int num_betas = 10;  // shape coefficients fitted (at most the model's)
+  // The shape the fit starts from (its first num_betas coefficients; the rest zero); empty: the
+  // mean shape (zeros). With free_betas false in every stage the fit keeps it (`track`'s second
+  // pass: one shape for all frames).
+  Eigen::VectorXd initial_betas;
   // What the keypoints mark (body/keypoints.hpp): COCO's places (every detector; perceive's
   // output) or the body model's joints (the synth's true keypoints).
   KeypointConvention keypoints = KeypointConvention::kCoco;

@@ -41,6 +41,8 @@ class PerceiveHelper {
 
   const nlohmann::json& hello() const { return hello_; }
   const std::string& dir() const { return dir_; }
+  // False once it was stopped (after a timeout, a crash or a malformed answer).
+  bool running() const { return pid_ > 0; }
   // What the helper wrote on stderr so far (its last 16 KiB).
   const std::string& stderr_text() const { return err_; }
 

@@ -328,12 +328,15 @@ void detect(PerceiveHelper& helper, const std::string& dir, const std::string& p
 
 // The detector for what the user's files left out (keypoints, mask, face); perceive.json's
 // "detector" and "face".
+// `warm`: a helper the caller keeps running (none: one is started here).
 void detect_missing(const std::string& photo, const PerceiveOptions& opts, Subject& s,
-                    PerceiveReport& rep) {
+                    PerceiveReport& rep, PerceiveHelper* warm) {
   const bool need_detector = !s.have_keypoints || s.mask.empty();
   const bool want_face = opts.face && s.person.face.empty();
   s.info["detector"] = nullptr;
-  if (need_detector || want_face) {
+  if (warm && (need_detector || want_face)) {
+    detect(*warm, warm->dir(), photo, opts, want_face, s, rep);
+  } else if (need_detector || want_face) {
     std::string dir;
     const std::unique_ptr<PerceiveHelper> helper = start_helper(opts, need_detector, dir, rep);
     if (helper) detect(*helper, dir, photo, opts, want_face, s, rep);
@@ -385,10 +388,8 @@ void write_subject(const std::string& out_dir, const PerceiveOptions& opts,
   staged.commit();
 }
 
-}  // namespace
-
-PerceiveReport run_perceive(const std::string& photo, const std::string& out_dir,
-                            const PerceiveOptions& opts) {
+PerceiveReport perceive_photo(const std::string& photo, const std::string& out_dir,
+                              const PerceiveOptions& opts, PerceiveHelper* warm) {
   const auto t0 = std::chrono::steady_clock::now();
   check_request(out_dir, opts);
   PerceiveReport rep;
@@ -405,7 +406,7 @@ PerceiveReport run_perceive(const std::string& photo, const std::string& out_dir
   // The user's keypoints and mask (or the photo's alpha) win; the detector gives the rest.
   if (!opts.keypoints_path.empty()) read_user_keypoints(opts, s, rep);
   read_user_mask(opts, s, rep);
-  detect_missing(photo, opts, s, rep);
+  detect_missing(photo, opts, s, rep, warm);
 
   const Box box = check_person(photo, opts, s, rep);
   rep.face = !s.person.face.empty();
@@ -415,6 +416,18 @@ PerceiveReport run_perceive(const std::string& photo, const std::string& out_dir
 
   write_subject(out_dir, opts, t0, s, rep);
   return rep;
+}
+
+}  // namespace
+
+PerceiveReport run_perceive(const std::string& photo, const std::string& out_dir,
+                            const PerceiveOptions& opts) {
+  return perceive_photo(photo, out_dir, opts, nullptr);
+}
+
+PerceiveReport run_perceive(const std::string& photo, const std::string& out_dir,
+                            const PerceiveOptions& opts, PerceiveHelper& helper) {
+  return perceive_photo(photo, out_dir, opts, &helper);
 }
 
 }  // namespace ks

@@ -67,6 +67,13 @@ struct PerceiveReport {
 PerceiveReport run_perceive(const std::string& photo, const std::string& out_dir,
                             const PerceiveOptions& opts = {});
 
+class PerceiveHelper;
+
+// The same with a detector helper the caller started (find_perceive_helper, PerceiveHelper) and
+// keeps warm across photos (`track`); it is asked only for what the user's files leave out.
+PerceiveReport run_perceive(const std::string& photo, const std::string& out_dir,
+                            const PerceiveOptions& opts, PerceiveHelper& helper);
+
 // A detector's answer turned into BODY_25 (in the detector's pixel convention, which is ours):
 // COCO-17 keypoints [x, y, score] -> BODY_25 with scores below `min_score` absent.
 Body25 body25_from_detector(const std::vector<std::array<double, 3>>& coco17, float min_score);
