@@ -1,0 +1,70 @@
+// `kinesplat track`: the body in every frame of a video, a folder of frames or a set of photos,
+// with one camera focal and one body shape (docs/track.md).
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cli/registry.hpp"
+#include "core/error.hpp"
+#include "track/track.hpp"
+
+namespace {
+
+ks::cli::CommandGroup group(25, [](CLI::App& app) {
+  struct Args {
+    ks::TrackOptions o;
+    std::vector<std::string> inputs;
+    std::string out;
+    std::string keypoints = ks::to_string(o.fit.keypoints);
+    bool quiet = false;
+  };
+  auto a = std::make_shared<Args>();
+  auto* sub = app.add_subcommand(
+      "track",
+      "Fit the body in every frame of a video, a folder of frames or several photos: one camera "
+      "focal and one body shape for all (TRACK/track.json, TRACK/motion.npz, TRACK/frames/)");
+  sub->add_option("input", a->inputs,
+                  "A video file (anything ffmpeg reads), a folder of PNG / JPEG frames (sorted by "
+                  "name) or several image files")
+      ->required();
+  sub->add_option("--out", a->out, "Output folder TRACK (replaced if it is an earlier output)")
+      ->required();
+  sub->add_option("--every", a->o.input.every, "Keep every K-th frame")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--max-frames", a->o.input.max_frames,
+                  "At most this many frames, evenly spread (0: all)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  auto* focal = sub->add_option("--focal", a->o.fit.focal,
+                                "Focal length in pixels of the frames as perceive writes them "
+                                "(image.png; default: from --fov)");
+  auto* fov = sub->add_option("--fov", a->o.fit.fov_degrees,
+                              "Field of view across the frame's long side, degrees, when --focal "
+                              "is not given")
+                  ->capture_default_str()
+                  ->check(CLI::Range(1.0, 170.0));
+  focal->excludes(fov);
+  sub->add_option("--body", a->o.body, "Body model: 'default' or an SMPL / SMPL-X .npz")
+      ->capture_default_str();
+  sub->add_option("--keypoints", a->keypoints,
+                  "What the keypoints mark: 'coco' (the detector's) or 'joints'")
+      ->capture_default_str()
+      ->check(CLI::IsMember(ks::keypoint_convention_names()));
+  sub->add_option("--max-size", a->o.perceive.max_size,
+                  "Longer side of each frame's image.png (0: the input's size)")
+      ->capture_default_str();
+  sub->add_flag("--quiet,-q", a->quiet, "No progress lines");
+  sub->callback([a] {
+    ks::TrackOptions o = a->o;
+    o.progress = !a->quiet;
+    o.fit.keypoints = ks::parse_keypoint_convention(a->keypoints);
+    const ks::TrackResult r = ks::run_track(a->inputs, a->out, o);
+    std::printf("track: %zu frames, focal %.1f px, %zu skipped; wrote %s/track.json, motion.npz\n",
+                r.frames.size(), r.focal, r.skipped.size(), a->out.c_str());
+    for (const auto& s : r.skipped) std::printf("  skipped %s\n", s.c_str());
+  });
+});
+
+}  // namespace

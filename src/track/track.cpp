@@ -1,0 +1,221 @@
+#include "track/track.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+#include "core/error.hpp"
+#include "core/fileio.hpp"
+#include "core/math.hpp"
+#include "fit/fit_file.hpp"
+#include "perceive/helper.hpp"
+#include "track/track_file.hpp"
+
+namespace fs = std::filesystem;
+
+namespace ks {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string frame_name(const TrackFrameInput& f) {
+  return f.source + " (frame " + std::to_string(f.index) + ")";
+}
+
+// The folder may be replaced only when it is empty or an earlier track output.
+void check_out_dir(const std::string& out_dir) {
+  const fs::path p(out_dir);
+  std::error_code ec;
+  if (!fs::exists(p, ec)) return;
+  if (!fs::is_directory(p, ec))
+    throw Error("track: the output folder " + out_dir + " exists and is not a folder");
+  if (fs::is_empty(p, ec) || fs::exists(p / "track.json", ec)) return;
+  throw Error("track: the output folder " + out_dir +
+              " is a non-empty folder that is not a track output; choose a new folder");
+}
+
+// The kept frames' rate: the input's over the mean step between the kept frames.
+double kept_fps(const std::vector<TrackFrame>& frames, double input_fps) {
+  if (frames.size() < 2) return input_fps;
+  const double span = frames.back().index - frames.front().index;
+  return span > 0 ? input_fps * double(frames.size() - 1) / span : input_fps;
+}
+
+void write_outputs(const StagedDir& staged, const TrackResult& r) {
+  write_json_atomic(staged.path("track.json"), track_json(r));
+  save_amass_npz(staged.path("motion.npz"), track_motion(r));
+}
+
+}  // namespace
+
+TrackResult fit_track(const BodyModel& model, const std::vector<TrackFrameInput>& frames,
+                      const TrackOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  TrackResult r;
+  r.body_model = o.body;
+  std::vector<FitInput> inputs;
+  std::vector<TrackFrameInput> kept;
+  FitOptions pass1 = o.fit;
+  pass1.progress = false;
+  // Pass 1: each frame on its own.
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const TrackFrameInput& f = frames[i];
+    FitInput in = load_fit_input(f.subject_dir);
+    if (r.width == 0) {
+      r.width = in.width;
+      r.height = in.height;
+    } else if (in.width != r.width || in.height != r.height) {
+      throw Error("track: " + frame_name(f) + " is " + std::to_string(in.width) + "x" +
+                  std::to_string(in.height) + ", the first frame " + std::to_string(r.width) + "x" +
+                  std::to_string(r.height));
+    }
+    TrackFrame tf;
+    tf.index = f.index;
+    tf.time_s = f.time_s;
+    tf.source = f.source;
+    try {
+      tf.independent = fit_body(model, in, pass1);
+    } catch (const Error& e) {
+      r.skipped.push_back(frame_name(f) + ": " + e.what());
+      if (o.progress)
+        std::fprintf(stderr, "track: fit pass 1: skipped %s\n", r.skipped.back().c_str());
+      continue;
+    }
+    for (int k = 0; k < kBody25Count; ++k)
+      if (in.keypoints[size_t(k)].z() > 0) tf.keypoints_used.push_back(body25_names()[size_t(k)]);
+    if (o.progress)
+      std::fprintf(stderr, "track: fit pass 1: frame %zu/%zu (%s) cost %.4g, %.1f s\n", i + 1,
+                   frames.size(), f.source.c_str(), tf.independent.costs["total"],
+                   tf.independent.seconds);
+    r.frames.push_back(std::move(tf));
+    inputs.push_back(std::move(in));
+    kept.push_back(f);
+  }
+  if (r.frames.empty())
+    throw Error("track: no frame could be fitted" +
+                (r.skipped.empty() ? std::string() : " (" + r.skipped.front() + ")"));
+  r.focal = fit_focal(o.fit, r.width, r.height);
+
+  // The shared shape: per coefficient the median over the frames.
+  const int nb = int(r.frames.front().independent.params.betas.size());
+  r.betas = Eigen::VectorXd::Zero(nb);
+  for (int c = 0; c < nb; ++c) {
+    std::vector<double> v;
+    for (const TrackFrame& f : r.frames)
+      if (c < f.independent.params.betas.size()) v.push_back(f.independent.params.betas[c]);
+    r.betas[c] = median(v);
+  }
+
+  // Pass 2: every frame again with the shape fixed to the shared one.
+  FitOptions pass2 = pass1;
+  pass2.initial_betas = r.betas;
+  for (auto* stages : {&pass2.schedule.per_start, &pass2.schedule.refine})
+    for (FitStage& s : *stages) s.free_betas = false;
+  for (size_t i = 0; i < r.frames.size(); ++i) {
+    TrackFrame& tf = r.frames[i];
+    tf.fit = fit_body(model, inputs[i], pass2);
+    tf.fit.params.betas = r.betas;
+    tf.subject = kept[i].subject_dir;
+    if (o.progress)
+      std::fprintf(
+          stderr, "track: fit pass 2 (shared shape): frame %zu/%zu (%s) cost %.4g, %.1f s\n", i + 1,
+          r.frames.size(), tf.source.c_str(), tf.fit.costs["total"], tf.fit.seconds);
+  }
+  r.fit_seconds = seconds_since(t0);
+  return r;
+}
+
+TrackResult track_subjects(const std::vector<TrackFrameInput>& frames, const std::string& out_dir,
+                           const TrackOptions& o) {
+  check_out_dir(out_dir);
+  if (frames.empty()) throw Error("track: no frames given");
+  const BodyModel model = load_body_model(o.body);
+  TrackResult r = fit_track(model, frames, o);
+  const double dt = frames.back().time_s - frames.front().time_s;
+  const int di = frames.back().index - frames.front().index;
+  r.input_fps = di > 0 && dt > 0 ? di / dt : o.input.image_fps;
+  r.fps = kept_fps(r.frames, r.input_fps);
+  StagedDir staged(out_dir);
+  write_outputs(staged, r);
+  staged.commit();
+  return r;
+}
+
+TrackResult run_track(const std::vector<std::string>& inputs, const std::string& out_dir,
+                      const TrackOptions& o) {
+  check_out_dir(out_dir);
+  const BodyModel model = load_body_model(o.body);  // a bad --body fails before any work
+  StagedDir staged(out_dir);
+  const std::string decoded = staged.path("decoded");
+  if (o.progress) std::fprintf(stderr, "track: reading %s\n", inputs.front().c_str());
+  const TrackInput in = list_track_input(inputs, decoded, o.input);
+  if (o.progress)
+    std::fprintf(stderr, "track: %zu of %d frames kept (%s, %.3g fps)\n", in.frames.size(),
+                 in.total, in.video ? "video" : "images", in.fps);
+
+  // Perceive every frame with one helper kept warm (restarted when it died on a frame).
+  const auto tp = std::chrono::steady_clock::now();
+  PerceiveOptions po = o.perceive;
+  po.overlay = false;
+  const std::string helper_dir = po.helper_dir.empty() ? find_perceive_helper() : po.helper_dir;
+  HelperOptions ho;
+  ho.request_timeout_s = po.helper_timeout_s;
+  std::unique_ptr<PerceiveHelper> helper = std::make_unique<PerceiveHelper>(helper_dir, ho);
+  std::vector<TrackFrameInput> subjects;
+  std::vector<std::string> skipped;
+  for (size_t i = 0; i < in.frames.size(); ++i) {
+    const InputFrame& f = in.frames[i];
+    char name[32];
+    std::snprintf(name, sizeof name, "frames/%04zu", i);
+    TrackFrameInput s;
+    s.subject_dir = staged.path(name);
+    s.source = f.source;
+    s.index = f.index;
+    s.time_s = f.time_s;
+    try {
+      if (!helper->running()) helper = std::make_unique<PerceiveHelper>(helper_dir, ho);
+      const PerceiveReport rep = run_perceive(f.path, s.subject_dir, po, *helper);
+      if (o.progress)
+        std::fprintf(stderr, "track: perceive: frame %zu/%zu (%s) %d keypoints, %.2f s\n", i + 1,
+                     in.frames.size(), f.source.c_str(), rep.body_keypoints, rep.seconds);
+      subjects.push_back(s);
+    } catch (const Error& e) {
+      skipped.push_back(frame_name(s) + ": " + e.what());
+      if (o.progress) std::fprintf(stderr, "track: perceive: skipped %s\n", skipped.back().c_str());
+    }
+  }
+  helper.reset();
+  const double perceive_s = seconds_since(tp);
+  if (subjects.empty()) {
+    std::string which;
+    for (size_t i = 0; i < skipped.size() && i < 5; ++i) which += "\n  " + skipped[i];
+    if (skipped.size() > 5) which += "\n  ... and " + std::to_string(skipped.size() - 5) + " more";
+    throw Error("track: no person found in any of the " + std::to_string(in.frames.size()) +
+                " frames of " + inputs.front() + ":" + which);
+  }
+  std::error_code ec;
+  fs::remove_all(decoded, ec);
+
+  TrackResult r = fit_track(model, subjects, o);
+  r.skipped.insert(r.skipped.begin(), skipped.begin(), skipped.end());
+  r.perceive_seconds = perceive_s;
+  r.video = in.video;
+  r.input_fps = in.fps;
+  r.fps = kept_fps(r.frames, in.fps);
+  // Subject folders relative to TRACK.
+  for (TrackFrame& f : r.frames)
+    f.subject = fs::path(f.subject).lexically_relative(staged.staging()).string();
+  write_outputs(staged, r);
+  staged.commit();
+  if (o.progress)
+    std::fprintf(
+        stderr, "track: %zu frames fitted (%zu skipped); perceive %.1f s, fit %.1f s; wrote %s\n",
+        r.frames.size(), r.skipped.size(), r.perceive_seconds, r.fit_seconds, out_dir.c_str());
+  return r;
+}
+
+}  // namespace ks

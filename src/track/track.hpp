@@ -1,0 +1,78 @@
+#pragma once
+// `kinesplat track`: the body in every frame of a video or photo set, one camera focal and one
+// body shape for all frames (docs/track.md).
+//   1. the input's frames (track_input.hpp): a video decoded by ffmpeg, a folder, image files;
+//   2. perceive per frame with one detector helper kept warm: TRACK/frames/NNNN/ (image.png,
+//      mask.png, keypoints.json, perceive.json); a frame without a person is skipped;
+//   3. fit pass 1: each frame on its own (the single-photo fit's schedule); the shared shape = the
+//      per-coefficient median of the frames' betas; pass 2: each frame again with that shape
+//      fixed (FitOptions::initial_betas, free_betas off in every stage);
+//   4. TRACK/track.json and TRACK/motion.npz (track_file.hpp).
+// The output folder appears atomically: on any error nothing is left.
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "body/body_model.hpp"
+#include "fit/fit.hpp"
+#include "perceive/perceive.hpp"
+#include "track/track_input.hpp"
+
+namespace ks {
+
+struct TrackOptions {
+  TrackInputOptions input;
+  PerceiveOptions perceive;
+  std::string body = "default";  // 'default' or an SMPL-family .npz
+  FitOptions fit;                // focal / fov, keypoint convention; pass 1's schedule
+  bool progress = true;          // a line per stage and frame on stderr
+};
+
+// One frame to fit: a subject folder as `perceive` writes it, and where it came from.
+struct TrackFrameInput {
+  std::string subject_dir;
+  std::string source;  // the file name (or VIDEO#n)
+  int index = 0;       // the frame's number in the input
+  double time_s = 0;
+};
+
+struct TrackFrame {
+  int index = 0;
+  double time_s = 0;
+  std::string source;
+  std::string subject;                      // the subject folder, relative to TRACK
+  FitResult independent;                    // pass 1: the frame on its own
+  FitResult fit;                            // pass 2: with the shared shape
+  std::vector<std::string> keypoints_used;  // BODY_25 names of the keypoints present
+};
+
+struct TrackResult {
+  std::string body_model = "default";
+  Eigen::VectorXd betas;  // the shared shape
+  double focal = 0;       // pixels of image.png
+  int width = 0, height = 0;
+  double fps = 30;  // the kept frames' rate (the input's divided by the mean step between them)
+  double input_fps = 30;
+  bool video = false;
+  std::vector<TrackFrame> frames;
+  std::vector<std::string> skipped;  // "SOURCE (frame n): why"
+  double perceive_seconds = 0, fit_seconds = 0;
+};
+
+// Steps 3 (both passes) on subject folders; `frames` in time order, all of one image size.
+// Frames whose fit fails (no torso) are skipped and listed. Throws ks::Error when none is left.
+TrackResult fit_track(const BodyModel& model, const std::vector<TrackFrameInput>& frames,
+                      const TrackOptions& options = {});
+
+// Steps 3-4 on subject folders the caller made (the tests give the synth's true keypoints and
+// masks): TRACK/track.json and TRACK/motion.npz, written atomically.
+TrackResult track_subjects(const std::vector<TrackFrameInput>& frames, const std::string& out_dir,
+                           const TrackOptions& options = {});
+
+// The whole command: steps 1-4 into out_dir (atomically; a non-empty folder that is not an
+// earlier track output is refused). Throws ks::Error on bad input, and when no frame has a person
+// (naming the frames).
+TrackResult run_track(const std::vector<std::string>& inputs, const std::string& out_dir,
+                      const TrackOptions& options = {});
+
+}  // namespace ks

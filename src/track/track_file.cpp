@@ -1,0 +1,100 @@
+#include "track/track_file.hpp"
+
+#include <Eigen/Core>
+#include <map>
+
+#include "core/error.hpp"
+#include "core/rotation.hpp"
+#include "fit/fit_body.hpp"
+#include "io/npz.hpp"
+
+namespace ks {
+
+nlohmann::json track_json(const TrackResult& t) {
+  nlohmann::json j;
+  j["format"] = "kinesplat-track";
+  j["version"] = "1.0";
+  j["body_model"] = t.body_model;
+  j["betas"] = std::vector<double>(t.betas.data(), t.betas.data() + t.betas.size());
+  j["focal"] = t.focal;
+  j["width"] = t.width;
+  j["height"] = t.height;
+  j["fps"] = t.fps;
+  j["input_fps"] = t.input_fps;
+  j["input"] = t.video ? "video" : "images";
+  j["camera_fixed"] = true;
+  nlohmann::json frames = nlohmann::json::array();
+  for (const TrackFrame& f : t.frames) {
+    BodyParams p = f.fit.params;
+    p.betas = t.betas;
+    nlohmann::json fj;
+    fj["index"] = f.index;
+    fj["time"] = f.time_s;
+    fj["source"] = f.source;
+    fj["subject"] = f.subject;
+    fj["params"] = p.to_json();
+    fj["camera"] = f.fit.camera.to_json();
+    const auto c = f.fit.costs.find("total");
+    fj["confidence"] = {{"cost", c == f.fit.costs.end() ? 0.0 : c->second},
+                        {"what", "the fit's final total cost (lower is better)"}};
+    fj["costs"] = f.fit.costs;
+    fj["facing_camera"] = f.fit.facing_camera;
+    fj["keypoints_used"] = f.keypoints_used;
+    const auto ci = f.independent.costs.find("total");
+    fj["independent"] = {{"betas", std::vector<double>(f.independent.params.betas.data(),
+                                                       f.independent.params.betas.data() +
+                                                           f.independent.params.betas.size())},
+                         {"params", f.independent.params.to_json()},
+                         {"camera", f.independent.camera.to_json()},
+                         {"cost", ci == f.independent.costs.end() ? 0.0 : ci->second}};
+    frames.push_back(fj);
+  }
+  j["frames"] = frames;
+  j["skipped"] = t.skipped;
+  j["perceive_seconds"] = t.perceive_seconds;
+  j["fit_seconds"] = t.fit_seconds;
+  return j;
+}
+
+Motion track_motion(const TrackResult& t) {
+  if (t.frames.empty()) throw Error("track: no frames to make a motion of");
+  Motion m;
+  m.name = "track";
+  m.fps = t.fps;
+  const Eigen::Matrix3d R = fit::camera_rotation();
+  const Eigen::Vector3d t0 = t.frames.front().fit.camera.t;
+  for (const TrackFrame& f : t.frames) {
+    BodyParams b;
+    b.global_orient = f.fit.params.global_orient;
+    b.body_pose = f.fit.params.body_pose;
+    b.transl = R.transpose() * (f.fit.camera.t - t0);
+    m.frames.push_back(std::move(b));
+  }
+  return m;
+}
+
+void save_amass_npz(const std::string& path, const Motion& m) {
+  if (m.frames.empty()) throw Error("writing " + path + ": the motion has no frames");
+  // load_amass_npz maps AMASS's Z-up to our Y-up by C = -90 degrees about X; here C^T.
+  Eigen::Matrix3d C;
+  C << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  const int64_t N = int64_t(m.frames.size());
+  Eigen::MatrixXd poses = Eigen::MatrixXd::Zero(N, 72), trans(N, 3);
+  for (int64_t i = 0; i < N; ++i) {
+    const BodyParams& b = m.frames[size_t(i)];
+    const Eigen::Vector3d go = matrix_to_axis_angle(
+        Eigen::Matrix3d(C.transpose() * axis_angle_to_matrix(b.global_orient)));
+    poses.block<1, 3>(i, 0) = go.transpose();
+    const int n = std::min<int>(69, int(b.body_pose.size()));
+    for (int k = 0; k < n; ++k) poses(i, 3 + k) = b.body_pose[k];
+    trans.row(i) = (C.transpose() * b.transl).transpose();
+  }
+  std::map<std::string, NpyArray> a;
+  a["poses"] = NpyArray::from_matrix(poses);
+  a["trans"] = NpyArray::from_matrix(trans);
+  const double fps = m.fps;
+  a["mocap_framerate"] = NpyArray::from_doubles({}, &fps);
+  write_npz(path, a);
+}
+
+}  // namespace ks
