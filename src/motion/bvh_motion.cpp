@@ -210,10 +210,14 @@ Motion bvh_to_motion(const Bvh& bvh, const std::string& name, const std::vector<
     return (k - h).norm() + (a - k).norm();
   };
   const double leg_bvh = leg(bpos(kLeftHip), bpos(kLeftKnee), bpos(kLeftAnkle));
-  const double scale =
+  double scale =
       leg_bvh > 1e-9 ? leg(body(kLeftHip), body(kLeftKnee), body(kLeftAnkle)) / leg_bvh : 1.0;
+  // SMPL poses come with their translation in metres (as AMASS's): kept unscaled unless the
+  // file's legs say it is in other units.
+  if (smpl_poses && scale > 0.5 && scale < 2) scale = 1;
   // Frames (subsampled to about 30 fps).
   double fps = 1.0 / bvh.frame_time;
+  if (std::abs(fps - std::round(fps)) < 1e-4 * fps) fps = std::round(fps);  // 0.0333333 s: 30 fps
   int step = 1;
   if (fps > 45) step = std::max(1, int(std::lround(fps / 30.0)));
   fps /= step;

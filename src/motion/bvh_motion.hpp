@@ -22,7 +22,9 @@
 // rotations are taken as they are (no rest correction), whichever body's offsets they carry.
 // The root's translation is the mapped pelvis joint's motion relative to frame 0, scaled by the
 // ratio of the body's left leg length (hip -> knee -> ankle) to the BVH's, so centimetre, inch
-// and metre files all move the body by its own stride. The BVH's world must be Y up (the
+// and metre files all move the body by its own stride (SMPL-named files: unscaled metres, as
+// AMASS's, unless their legs are off by more than a factor 2). A frame time within 1e-4 of a
+// whole frame rate is read as that rate (0.033333 s: 30 fps). The BVH's world must be Y up (the
 // convention; kinesplat's too).
 #include <Eigen/Core>
 #include <string>
