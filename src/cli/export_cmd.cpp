@@ -25,7 +25,9 @@ ks::cli::CommandGroup group(80, [](CLI::App& app) {
   };
   auto args = std::make_shared<Args>();
   auto* sub = app.add_subcommand(
-      "export", "Write an avatar as a standard 3DGS .ply, or as a web page that plays it (--web)");
+      "export",
+      "Write an avatar as a standard 3DGS .ply, as a web page that plays it (--web) or as glTF "
+      "2.0 with its skin and motions (--gltf); or a motion as BVH on its skeleton (--bvh)");
   sub->add_option("avatar", args->avatar, "Avatar file (from `reconstruct`)")->required();
   auto* out = sub->add_option("--out", args->out, "Output .ply");
   auto* web = sub->add_option("--web", args->web,
