@@ -17,7 +17,7 @@ ks::cli::CommandGroup group(25, [](CLI::App& app) {
     std::vector<std::string> inputs;
     std::string out;
     std::string keypoints = ks::to_string(o.fit.keypoints);
-    bool quiet = false;
+    bool quiet = false, no_overlay = false;
   };
   auto a = std::make_shared<Args>();
   auto* sub = app.add_subcommand(
@@ -55,10 +55,13 @@ ks::cli::CommandGroup group(25, [](CLI::App& app) {
   sub->add_option("--max-size", a->o.perceive.max_size,
                   "Longer side of each frame's image.png (0: the input's size)")
       ->capture_default_str();
+  sub->add_flag("--no-overlay", a->no_overlay,
+                "Without TRACK/overlay.mp4 and the frames' fit_overlay.png");
   sub->add_flag("--quiet,-q", a->quiet, "No progress lines");
   sub->callback([a] {
     ks::TrackOptions o = a->o;
     o.progress = !a->quiet;
+    if (a->no_overlay) o.overlay = false;
     o.fit.keypoints = ks::parse_keypoint_convention(a->keypoints);
     const ks::TrackResult r = ks::run_track(a->inputs, a->out, o);
     std::printf("track: %zu frames, focal %.1f px, %zu skipped; wrote %s/track.json, motion.npz\n",

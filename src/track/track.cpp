@@ -9,6 +9,9 @@
 #include "core/fileio.hpp"
 #include "core/math.hpp"
 #include "fit/fit_file.hpp"
+#include "fit/overlay.hpp"
+#include "io/image_io.hpp"
+#include "io/video.hpp"
 #include "perceive/helper.hpp"
 #include "track/track_file.hpp"
 
@@ -48,6 +51,27 @@ double kept_fps(const std::vector<TrackFrame>& frames, double input_fps) {
 void write_outputs(const StagedDir& staged, const TrackResult& r) {
   write_json_atomic(staged.path("track.json"), track_json(r));
   save_amass_npz(staged.path("motion.npz"), track_motion(r));
+}
+
+// Each frame's fit on the frame: SUBJECT/fit_overlay.png, and all of them as overlay.mp4.
+void write_overlays(const BodyModel& model, const StagedDir& staged, const TrackResult& r,
+                    const TrackOptions& o) {
+  std::unique_ptr<Mp4Writer> video;
+  if (!find_ffmpeg().empty()) {
+    VideoOptions vo;
+    vo.fps = r.fps;
+    video = std::make_unique<Mp4Writer>(staged.path("overlay.mp4"), r.width, r.height, vo);
+  }
+  for (const TrackFrame& f : r.frames) {
+    const fs::path dir(f.subject);
+    const FitInput in = load_fit_input(dir.string());
+    const Image photo = read_image((dir / "image.png").string(), 3);
+    const Image img =
+        fit_overlay(photo, model, f.fit.params, f.fit.camera, in.keypoints, o.fit.keypoints);
+    write_png((dir / "fit_overlay.png").string(), img);
+    if (video) video->add(img);
+  }
+  if (video) video->finish();
 }
 
 }  // namespace
@@ -154,8 +178,9 @@ TrackResult run_track(const std::vector<std::string>& inputs, const std::string&
   if (o.progress) std::fprintf(stderr, "track: reading %s\n", inputs.front().c_str());
   const TrackInput in = list_track_input(inputs, decoded, o.input);
   if (o.progress)
-    std::fprintf(stderr, "track: %zu of %d frames kept (%s, %.3g fps)\n", in.frames.size(),
-                 in.total, in.video ? "video" : "images", in.fps);
+    std::fprintf(stderr, "track: %zu frames kept of %s%d (%s, %.4g fps)\n", in.frames.size(),
+                 in.video && o.input.every > 1 ? "about " : "", in.total,
+                 in.video ? "video" : "images", in.fps);
 
   // Perceive every frame with one helper kept warm (restarted when it died on a frame).
   const auto tp = std::chrono::steady_clock::now();
@@ -206,6 +231,10 @@ TrackResult run_track(const std::vector<std::string>& inputs, const std::string&
   r.video = in.video;
   r.input_fps = in.fps;
   r.fps = kept_fps(r.frames, in.fps);
+  if (o.overlay) {
+    if (o.progress) std::fprintf(stderr, "track: overlays\n");
+    write_overlays(model, staged, r, o);
+  }
   // Subject folders relative to TRACK.
   for (TrackFrame& f : r.frames)
     f.subject = fs::path(f.subject).lexically_relative(staged.staging()).string();

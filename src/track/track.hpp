@@ -7,7 +7,7 @@
 //   3. fit pass 1: each frame on its own (the single-photo fit's schedule); the shared shape = the
 //      per-coefficient median of the frames' betas; pass 2: each frame again with that shape
 //      fixed (FitOptions::initial_betas, free_betas off in every stage);
-//   4. TRACK/track.json and TRACK/motion.npz (track_file.hpp).
+//   4. TRACK/track.json and TRACK/motion.npz (track_file.hpp); TRACK/overlay.mp4.
 // The output folder appears atomically: on any error nothing is left.
 #include <Eigen/Core>
 #include <string>
@@ -26,6 +26,9 @@ struct TrackOptions {
   std::string body = "default";  // 'default' or an SMPL-family .npz
   FitOptions fit;                // focal / fov, keypoint convention; pass 1's schedule
   bool progress = true;          // a line per stage and frame on stderr
+  // run_track: each frame's fit drawn on it (fit/overlay.hpp) as TRACK/frames/NNNN/fit_overlay.png
+  // and TRACK/overlay.mp4 (the video only where ffmpeg is found).
+  bool overlay = true;
 };
 
 // One frame to fit: a subject folder as `perceive` writes it, and where it came from.

@@ -316,6 +316,8 @@ TEST(TrackCli, TracksASynthVideoWithTheDetector) {
   EXPECT_TRUE(fs::exists(out + "/frames/0002/keypoints.json"));
   EXPECT_TRUE(fs::exists(out + "/frames/0002/mask.png"));
   EXPECT_FALSE(fs::exists(out + "/decoded"));
+  EXPECT_EQ(read_image(out + "/frames/0001/fit_overlay.png").width, 256);
+  EXPECT_TRUE(fs::exists(out + "/overlay.mp4"));
   EXPECT_EQ(load_motion(out + "/motion.npz").frames.size(), 3u);
 
   Image blank(128, 192, 3);
