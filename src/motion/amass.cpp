@@ -3,12 +3,24 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <filesystem>
+#include <map>
 
 #include "core/error.hpp"
 #include "core/rotation.hpp"
 #include "io/npz.hpp"
 
 namespace ks {
+
+namespace {
+
+// AMASS's Z-up world to kinesplat's Y-up: -90 degrees about X, (x, y, z) -> (x, z, -y).
+Eigen::Matrix3d amass_to_world() {
+  Eigen::Matrix3d C;
+  C << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  return C;
+}
+
+}  // namespace
 
 Motion load_amass_npz(const std::string& path, int frames) {
   const NpzFile npz = read_npz(path);
@@ -46,9 +58,7 @@ Motion load_amass_npz(const std::string& path, int frames) {
   Motion m;
   m.name = std::filesystem::path(path).stem().string();
   m.fps = fps / stride;
-  // Z-up -> Y-up: rotate -90 degrees about X: (x, y, z) -> (x, z, -y).
-  Eigen::Matrix3d C;
-  C << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  const Eigen::Matrix3d C = amass_to_world();
   Eigen::Vector3d t0 = Eigen::Vector3d::Zero();
   for (int64_t i = 0; i < N; i += stride) {
     if (frames > 0 && int(m.frames.size()) >= frames) break;
@@ -88,6 +98,28 @@ Motion load_amass_npz(const std::string& path, int frames) {
     m.frames.push_back(std::move(b));
   }
   return m;
+}
+
+void save_amass_npz(const std::string& path, const Motion& m) {
+  if (m.frames.empty()) throw Error("writing " + path + ": the motion has no frames");
+  const Eigen::Matrix3d C = amass_to_world();  // load_amass_npz's; here its transpose
+  const int64_t N = int64_t(m.frames.size());
+  Eigen::MatrixXd poses = Eigen::MatrixXd::Zero(N, 72), trans(N, 3);
+  for (int64_t i = 0; i < N; ++i) {
+    const BodyParams& b = m.frames[size_t(i)];
+    const Eigen::Vector3d go = matrix_to_axis_angle(
+        Eigen::Matrix3d(C.transpose() * axis_angle_to_matrix(b.global_orient)));
+    poses.block<1, 3>(i, 0) = go.transpose();
+    const int n = std::min<int>(69, int(b.body_pose.size()));
+    for (int k = 0; k < n; ++k) poses(i, 3 + k) = b.body_pose[k];
+    trans.row(i) = (C.transpose() * b.transl).transpose();
+  }
+  std::map<std::string, NpyArray> a;
+  a["poses"] = NpyArray::from_matrix(poses);
+  a["trans"] = NpyArray::from_matrix(trans);
+  const double fps = m.fps;
+  a["mocap_framerate"] = NpyArray::from_doubles({}, &fps);
+  write_npz(path, a);
 }
 
 }  // namespace ks

@@ -16,4 +16,9 @@ namespace ks {
 // for a missing key, a wrong shape, non-finite values or an empty motion.
 Motion load_amass_npz(const std::string& path, int frames = 0);
 
+// `motion` as an AMASS .npz (poses N x 72, trans N x 3, mocap_framerate; no gender): kinesplat's
+// Y-up world turned back to AMASS's Z-up (the inverse of load_amass_npz's rotation). Written
+// atomically. Throws ks::Error for an empty motion.
+void save_amass_npz(const std::string& path, const Motion& motion);
+
 }  // namespace ks

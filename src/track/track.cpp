@@ -12,6 +12,7 @@
 #include "fit/overlay.hpp"
 #include "io/image_io.hpp"
 #include "io/video.hpp"
+#include "motion/amass.hpp"
 #include "perceive/helper.hpp"
 #include "track/track_file.hpp"
 

@@ -1,12 +1,11 @@
 #include "track/track_file.hpp"
 
 #include <Eigen/Core>
-#include <map>
 
 #include "core/error.hpp"
 #include "core/rotation.hpp"
 #include "fit/fit_body.hpp"
-#include "io/npz.hpp"
+#include "motion/amass.hpp"
 
 namespace ks {
 
@@ -71,30 +70,6 @@ Motion track_motion(const TrackResult& t) {
     m.frames.push_back(std::move(b));
   }
   return m;
-}
-
-void save_amass_npz(const std::string& path, const Motion& m) {
-  if (m.frames.empty()) throw Error("writing " + path + ": the motion has no frames");
-  // load_amass_npz maps AMASS's Z-up to our Y-up by C = -90 degrees about X; here C^T.
-  Eigen::Matrix3d C;
-  C << 1, 0, 0, 0, 0, 1, 0, -1, 0;
-  const int64_t N = int64_t(m.frames.size());
-  Eigen::MatrixXd poses = Eigen::MatrixXd::Zero(N, 72), trans(N, 3);
-  for (int64_t i = 0; i < N; ++i) {
-    const BodyParams& b = m.frames[size_t(i)];
-    const Eigen::Vector3d go = matrix_to_axis_angle(
-        Eigen::Matrix3d(C.transpose() * axis_angle_to_matrix(b.global_orient)));
-    poses.block<1, 3>(i, 0) = go.transpose();
-    const int n = std::min<int>(69, int(b.body_pose.size()));
-    for (int k = 0; k < n; ++k) poses(i, 3 + k) = b.body_pose[k];
-    trans.row(i) = (C.transpose() * b.transl).transpose();
-  }
-  std::map<std::string, NpyArray> a;
-  a["poses"] = NpyArray::from_matrix(poses);
-  a["trans"] = NpyArray::from_matrix(trans);
-  const double fps = m.fps;
-  a["mocap_framerate"] = NpyArray::from_doubles({}, &fps);
-  write_npz(path, a);
 }
 
 }  // namespace ks

@@ -1,7 +1,7 @@
 #pragma once
 // What `track` writes: TRACK/track.json (format "kinesplat-track" 1.0: the shared betas, the
 // focal, per frame the fit's params and camera in fit.json's fields) and TRACK/motion.npz (the
-// AMASS layout motion/amass.hpp reads: the camera fixed, the body moving in the world).
+// AMASS layout motion/amass.hpp reads and writes: the camera fixed, the body moving in the world).
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -16,10 +16,5 @@ nlohmann::json track_json(const TrackResult& track);
 // (the fit's camera is world-to-camera X_c = R X + t with the body at the origin); poses =
 // global_orient + body_pose; fps = track.fps.
 Motion track_motion(const TrackResult& track);
-
-// `motion` as an AMASS .npz (poses N x 72, trans N x 3, mocap_framerate, gender "neutral" is not
-// written): kinesplat's Y-up world turned back to AMASS's Z-up (the inverse of load_amass_npz's
-// -90 degrees about X). Written atomically.
-void save_amass_npz(const std::string& path, const Motion& motion);
 
 }  // namespace ks

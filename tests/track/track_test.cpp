@@ -21,6 +21,7 @@
 #include "fit/fit_body.hpp"
 #include "fit/fit_file.hpp"
 #include "io/image_io.hpp"
+#include "motion/amass.hpp"
 #include "motion/motion.hpp"
 #include "perceive/openpose.hpp"
 #include "synth/run.hpp"
