@@ -6,11 +6,11 @@ DEMO_DIR ?= demo-out
 
 DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libopencv-dev \
   nlohmann-json3-dev libcli11-dev libgtest-dev libbenchmark-dev zlib1g-dev ffmpeg libceres-dev \
-  chromium
+  chromium blender
 # The perceive helper (Node): its packages pinned by its package-lock.json, its models by models.json.
 PERCEIVE_HELPER := helpers/perceive
 
-.PHONY: deps node perceive-helper viewer gltf-validator build test test-slurm test-sanitize fuzz fuzz-build fuzz-corpus demo demo-true-frames bench format clean
+.PHONY: deps node perceive-helper viewer gltf-validator gltf-browser build test test-slurm test-sanitize fuzz fuzz-build fuzz-corpus demo demo-true-frames bench format clean
 
 deps:
 	@missing=""; for p in $(DEB_PACKAGES); do \
@@ -21,7 +21,7 @@ deps:
 	  SUDO=""; [ "$$(id -u)" -ne 0 ] && SUDO=sudo; \
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
 	else echo "kinesplat: all Debian packages present"; fi
-	@$(MAKE) --no-print-directory node perceive-helper viewer gltf-validator
+	@$(MAKE) --no-print-directory node perceive-helper viewer gltf-validator gltf-browser
 
 # Node.js and npm (Debian's where there are none): the perceive helper and the viewer run on them.
 node:
@@ -56,6 +56,15 @@ gltf-validator: node
 	  echo "kinesplat: installing glTF-Validator (npm ci in tests/gltf/validator)"; \
 	  npm ci --ignore-scripts --no-audit --no-fund --loglevel=error && cp package-lock.json node_modules/.kinesplat-lock \
 	  || echo "kinesplat: WARNING: glTF-Validator could not be installed (its test will skip)"; \
+	fi
+
+# The glTF export's browser check (tests/gltf/browser, docs/export.md): three.js and Babylon.js,
+# pinned by tests/gltf/browser/package-lock.json; without them that test skips, saying so.
+gltf-browser: node
+	@cd tests/gltf/browser && if ! cmp -s package-lock.json node_modules/.kinesplat-lock 2>/dev/null; then \
+	  echo "kinesplat: installing the glTF browser check's packages (npm ci in tests/gltf/browser)"; \
+	  npm ci --ignore-scripts --no-audit --no-fund --loglevel=error && cp package-lock.json node_modules/.kinesplat-lock \
+	  || echo "kinesplat: WARNING: the glTF browser check's packages could not be installed (its test will skip)"; \
 	fi
 
 build:
