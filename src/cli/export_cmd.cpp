@@ -53,8 +53,8 @@ ks::cli::CommandGroup group(80, [](CLI::App& app) {
   auto* both =
       sub->add_flag("--both", args->both, "With --gltf: the mesh and the splats (the default)");
   auto* vc = sub->add_flag("--vertex-colors", args->vertex_colors,
-                           "With --gltf: the mesh's colour as COLOR_0 (the default and, for now, "
-                           "the only colouring; no texture atlas yet)");
+                           "With --gltf: the mesh's colour as COLOR_0 instead of a texture "
+                           "(the default: a PNG over the project's UV atlas)");
   m->excludes(s)->excludes(both)->needs(gltf);
   s->excludes(both)->needs(gltf);
   both->needs(gltf);
@@ -84,6 +84,7 @@ ks::cli::CommandGroup group(80, [](CLI::App& app) {
       ks::GltfExportOptions opt;
       if (args->only_mesh) opt.splats = false;
       if (args->only_splats) opt.mesh = false;
+      opt.vertex_colors = args->vertex_colors;
       std::vector<ks::Motion> motions;
       for (const auto& name : args->motions) motions.push_back(ks::load_motion(name));
       const auto t0 = std::chrono::steady_clock::now();

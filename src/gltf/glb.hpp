@@ -29,6 +29,8 @@ class GlbBuilder {
   // Unsigned integers stored as component type `component` (unsigned byte / short / int).
   int add_uints(const std::vector<uint32_t>& values, const std::string& type, int component,
                 int target = 0);
+  // Raw bytes (an image) as a buffer view without a target; returns the view's index.
+  int add_bytes(const void* data, size_t bytes) { return add_view(data, bytes, 0); }
   // The whole file: JSON chunk with buffers[0] = the binary buffer, then the BIN chunk.
   std::vector<uint8_t> finish();
 

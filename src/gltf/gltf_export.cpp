@@ -5,14 +5,13 @@
 #include <cmath>
 
 #include "avatar/pose.hpp"
-#include "body/skin_weights.hpp"
 #include "core/error.hpp"
 #include "core/fileio.hpp"
 #include "core/rotation.hpp"
+#include "gltf/color_bake.hpp"
 #include "gltf/glb.hpp"
-#include "mesh/point_grid.hpp"
+#include "io/image_io.hpp"
 #include "mesh/trimesh.hpp"
-#include "raster/sh.hpp"
 
 namespace ks {
 
@@ -27,29 +26,6 @@ namespace {
 
 float sigmoid(float x) {
   return 1.f / (1.f + std::exp(-x));
-}
-
-// Grid cell for n points spread over their bounding box (about their spacing).
-double grid_cell(const Eigen::MatrixXd& P) {
-  const Eigen::Vector3d ext = P.colwise().maxCoeff() - P.colwise().minCoeff();
-  const double vol = std::max(ext.x(), 1e-6) * std::max(ext.y(), 1e-6) * std::max(ext.z(), 1e-6);
-  return std::max(1e-6, std::cbrt(vol / double(std::max<Eigen::Index>(P.rows(), 1))));
-}
-
-// The nearest point of the grid's set, however far (the search radius doubles until one is found).
-int nearest_any(const PointGrid& grid, const Eigen::Vector3d& q, double cell) {
-  for (double r = 2 * cell;; r *= 2) {
-    const int i = grid.nearest(q, r);
-    if (i >= 0 || r > 1e4) return i;
-  }
-}
-
-Eigen::Vector3f band0_srgb(const Gaussians& g, size_t i) {
-  const int K = g.coeffs();
-  Eigen::Vector3f c;
-  for (int k = 0; k < 3; ++k)
-    c[k] = std::clamp(float(g.sh[i * size_t(K) * 3 + size_t(k)] * sh::kC0 + 0.5), 0.f, 1.f);
-  return c;
 }
 
 // glTF quaternion (x, y, z, w) of an axis-angle.
@@ -73,58 +49,86 @@ int joint_component(int J) {
   return J <= 256 ? kGltfUnsignedByte : kGltfUnsignedShort;
 }
 
-}  // namespace
-
-BakedVertexAttributes bake_vertex_attributes(const Avatar& a) {
-  const long V = a.template_vertices.rows();
-  const size_t N = a.gaussians.size();
+// The skinned template surface: its attributes, indices and material (a base-colour texture over
+// the UV atlas, or COLOR_0) added to `b`; returns the mesh's JSON.
+json add_mesh(GlbBuilder& b, const Avatar& a, const GltfExportOptions& opt, int jcomp) {
+  const long V = a.template_vertices.rows(), F = a.template_faces.rows();
   if (V == 0) throw Error("gltf: the avatar has no template surface");
-  if (N == 0) throw Error("gltf: the avatar has no Gaussians to bake colours from");
-  if (a.anchors.size() != 3 * N || a.skin_joints.size() != 4 * N || a.skin_weights.size() != 4 * N)
-    throw Error("gltf: the avatar's anchors or skin weights do not match its Gaussians");
-  Eigen::MatrixXd anchors(long(N), 3);
-  for (size_t i = 0; i < N; ++i)
-    for (int k = 0; k < 3; ++k) anchors(long(i), k) = a.anchors[3 * i + size_t(k)];
-  const double vcell = grid_cell(a.template_vertices), acell = grid_cell(anchors);
-  const PointGrid vgrid(a.template_vertices, vcell);
-  std::vector<int> owner(N);
-  std::vector<std::vector<int>> members(static_cast<size_t>(V));
-  for (size_t i = 0; i < N; ++i) {
-    const int v = nearest_any(vgrid, anchors.row(long(i)).transpose(), vcell);
-    owner[i] = v;
-    if (v >= 0) members[size_t(v)].push_back(int(i));
+  if (F == 0) throw Error("gltf: the avatar's template has no faces");
+  if (a.template_faces.minCoeff() < 0 || a.template_faces.maxCoeff() >= V)
+    throw Error("gltf: the avatar's template has a face out of range");
+  const auto members = gaussians_per_vertex(a);
+  const BakedVertexAttributes baked = bake_vertex_attributes(a, members);
+  const Eigen::MatrixXd normals = vertex_normals(a.template_vertices, a.template_faces);
+  // The vertices written: the template's own, or with a texture its atlas copies.
+  std::vector<int> source;
+  Eigen::MatrixXi faces = a.template_faces;
+  BakedTexture tex;
+  if (!opt.vertex_colors) {
+    tex = bake_texture(a, baked, members, opt.texture);
+    source = tex.atlas.source;
+    faces = tex.atlas.faces;
+  } else {
+    source.resize(size_t(V));
+    for (long v = 0; v < V; ++v) source[size_t(v)] = int(v);
   }
-  const PointGrid agrid(anchors, acell);
-  BakedVertexAttributes out;
-  out.srgb.resize(3 * size_t(V));
-  out.joints.resize(4 * size_t(V));
-  out.weights.resize(4 * size_t(V));
-  std::vector<JointWeight> entries;
-  for (long v = 0; v < V; ++v) {
-    std::vector<int>& m = members[size_t(v)];
-    if (m.empty()) {
-      const int i = nearest_any(agrid, a.template_vertices.row(v).transpose(), acell);
-      if (i >= 0) m.push_back(i);
+  const size_t W = source.size();
+  std::vector<float> pos(3 * W), nrm(3 * W), col, wts(4 * W);
+  std::vector<int32_t> joints(4 * W);
+  if (opt.vertex_colors) col.resize(3 * W);
+  for (size_t w = 0; w < W; ++w) {
+    const int v = source[w];
+    Eigen::Vector3f n = normals.row(v).transpose().cast<float>();
+    if (!n.allFinite() || n.norm() < 1e-6f) n = Eigen::Vector3f(0, 1, 0);
+    n.normalize();
+    for (int k = 0; k < 3; ++k) {
+      pos[3 * w + size_t(k)] = float(a.template_vertices(v, k));
+      nrm[3 * w + size_t(k)] = n[k];
+      if (opt.vertex_colors)
+        col[3 * w + size_t(k)] = srgb_to_linear(baked.srgb[3 * size_t(v) + size_t(k)]);
     }
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    double wsum = 0;
-    entries.clear();
-    for (int i : m) {
-      const double w = std::max(1e-6, double(sigmoid(a.gaussians.opacity_logits[size_t(i)])));
-      c += w * band0_srgb(a.gaussians, size_t(i)).cast<double>();
-      wsum += w;
-      for (int s = 0; s < kAvatarSkinK; ++s)
-        add_joint_weight(entries, a.skin_joints[4 * size_t(i) + size_t(s)],
-                         w * a.skin_weights[4 * size_t(i) + size_t(s)]);
+    for (int s = 0; s < 4; ++s) {
+      joints[4 * w + size_t(s)] = baked.joints[4 * size_t(v) + size_t(s)];
+      wts[4 * w + size_t(s)] = baked.weights[4 * size_t(v) + size_t(s)];
     }
-    if (wsum > 0) c /= wsum;
-    for (int k = 0; k < 3; ++k) out.srgb[3 * size_t(v) + size_t(k)] = float(c[k]);
-    int jj[4];
-    reduce_top_k(entries, 4, jj, &out.weights[4 * size_t(v)]);
-    for (int s = 0; s < 4; ++s) out.joints[4 * size_t(v) + size_t(s)] = jj[s];
   }
-  return out;
+  zero_padding(joints, wts);
+  std::vector<uint32_t> idx(3 * size_t(F));
+  for (long f = 0; f < F; ++f)
+    for (int k = 0; k < 3; ++k) idx[3 * size_t(f) + size_t(k)] = uint32_t(faces(f, k));
+  json attrs = {{"POSITION", b.add_floats(pos, "VEC3", kGltfArrayBuffer, true)},
+                {"NORMAL", b.add_floats(nrm, "VEC3", kGltfArrayBuffer)},
+                {"JOINTS_0", b.add_uints(joint_list(joints), "VEC4", jcomp, kGltfArrayBuffer)},
+                {"WEIGHTS_0", b.add_floats(wts, "VEC4", kGltfArrayBuffer)}};
+  // The colours are the splats' own (lighting baked in): an unlit material shows them as they are.
+  json material = {
+      {"name", "avatar"},
+      {"pbrMetallicRoughness",
+       {{"baseColorFactor", {1, 1, 1, 1}}, {"metallicFactor", 0.0}, {"roughnessFactor", 1.0}}},
+      {"extensions", {{"KHR_materials_unlit", json::object()}}}};
+  if (opt.vertex_colors) {
+    attrs["COLOR_0"] = b.add_floats(col, "VEC3", kGltfArrayBuffer);
+  } else {
+    attrs["TEXCOORD_0"] = b.add_floats(tex.atlas.uv, "VEC2", kGltfArrayBuffer);
+    const std::vector<uint8_t> png = encode_png(tex.image);
+    b.gltf["images"] = json::array({{{"name", "avatar_colour"},
+                                     {"bufferView", b.add_bytes(png.data(), png.size())},
+                                     {"mimeType", "image/png"}}});
+    // LINEAR / LINEAR_MIPMAP_LINEAR, CLAMP_TO_EDGE.
+    b.gltf["samplers"] = json::array(
+        {{{"magFilter", 9729}, {"minFilter", 9987}, {"wrapS", 33071}, {"wrapT", 33071}}});
+    b.gltf["textures"] = json::array({{{"sampler", 0}, {"source", 0}}});
+    material["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}, {"texCoord", 0}};
+  }
+  b.gltf["materials"] = json::array({material});
+  const int ind = b.add_uints(idx, "SCALAR", W <= 65536 ? kGltfUnsignedShort : kGltfUnsignedInt,
+                              kGltfElementArrayBuffer);
+  return {{"name", "avatar_mesh"},
+          {"primitives",
+           json::array({{{"attributes", attrs}, {"indices", ind}, {"material", 0}, {"mode", 4}}})}};
 }
+
+}  // namespace
 
 std::vector<uint8_t> avatar_gltf(const Avatar& a, const std::vector<Motion>& motions,
                                  const GltfExportOptions& opt) {
@@ -167,53 +171,15 @@ std::vector<uint8_t> avatar_gltf(const Avatar& a, const std::vector<Motion>& mot
                              {"skeleton", 0},
                              {"inverseBindMatrices", b.add_floats(ibm, "MAT4")}}});
   json scene_nodes = json::array({0});
+  json extensions = json::array();
   json meshes = json::array();
   const int jcomp = joint_component(J);
 
   if (opt.mesh) {
-    const BakedVertexAttributes baked = bake_vertex_attributes(a);
-    const long V = a.template_vertices.rows();
-    std::vector<float> pos(3 * size_t(V)), nrm(3 * size_t(V)), col(3 * size_t(V));
-    const Eigen::MatrixXd normals = vertex_normals(a.template_vertices, a.template_faces);
-    for (long v = 0; v < V; ++v) {
-      Eigen::Vector3f n = normals.row(v).transpose().cast<float>();
-      if (!n.allFinite() || n.norm() < 1e-6f) n = Eigen::Vector3f(0, 1, 0);
-      n.normalize();
-      for (int k = 0; k < 3; ++k) {
-        pos[3 * size_t(v) + size_t(k)] = float(a.template_vertices(v, k));
-        nrm[3 * size_t(v) + size_t(k)] = n[k];
-        col[3 * size_t(v) + size_t(k)] = srgb_to_linear(baked.srgb[3 * size_t(v) + size_t(k)]);
-      }
-    }
-    std::vector<int32_t> joints = baked.joints;
-    zero_padding(joints, baked.weights);
-    const long F = a.template_faces.rows();
-    std::vector<uint32_t> idx(3 * size_t(F));
-    for (long f = 0; f < F; ++f)
-      for (int k = 0; k < 3; ++k) {
-        const int v = a.template_faces(f, k);
-        if (v < 0 || v >= V) throw Error("gltf: the avatar's template has a face out of range");
-        idx[3 * size_t(f) + size_t(k)] = uint32_t(v);
-      }
-    if (F == 0) throw Error("gltf: the avatar's template has no faces");
-    json attrs = {{"POSITION", b.add_floats(pos, "VEC3", kGltfArrayBuffer, true)},
-                  {"NORMAL", b.add_floats(nrm, "VEC3", kGltfArrayBuffer)},
-                  {"COLOR_0", b.add_floats(col, "VEC3", kGltfArrayBuffer)},
-                  {"JOINTS_0", b.add_uints(joint_list(joints), "VEC4", jcomp, kGltfArrayBuffer)},
-                  {"WEIGHTS_0", b.add_floats(baked.weights, "VEC4", kGltfArrayBuffer)}};
-    const int ind = b.add_uints(idx, "SCALAR", V <= 65536 ? kGltfUnsignedShort : kGltfUnsignedInt,
-                                kGltfElementArrayBuffer);
-    g["materials"] = json::array({{{"name", "avatar"},
-                                   {"pbrMetallicRoughness",
-                                    {{"baseColorFactor", {1, 1, 1, 1}},
-                                     {"metallicFactor", 0.0},
-                                     {"roughnessFactor", 1.0}}}}});
-    meshes.push_back(
-        {{"name", "avatar_mesh"},
-         {"primitives",
-          json::array({{{"attributes", attrs}, {"indices", ind}, {"material", 0}, {"mode", 4}}})}});
+    meshes.push_back(add_mesh(b, a, opt, jcomp));
     nodes.push_back({{"name", "avatar_mesh"}, {"mesh", int(meshes.size()) - 1}, {"skin", 0}});
     scene_nodes.push_back(int(nodes.size()) - 1);
+    extensions.push_back("KHR_materials_unlit");
   }
 
   if (opt.splats) {
@@ -267,7 +233,7 @@ std::vector<uint8_t> avatar_gltf(const Avatar& a, const std::vector<Motion>& mot
                            {{"kernel", "ellipse"}, {"colorSpace", "srgb_rec709_display"}}}}}}})}});
     nodes.push_back({{"name", "avatar_splats"}, {"mesh", int(meshes.size()) - 1}, {"skin", 0}});
     scene_nodes.push_back(int(nodes.size()) - 1);
-    g["extensionsUsed"] = json::array({"KHR_gaussian_splatting"});
+    extensions.push_back("KHR_gaussian_splatting");
   }
 
   // Animations.
@@ -310,6 +276,7 @@ std::vector<uint8_t> avatar_gltf(const Avatar& a, const std::vector<Motion>& mot
                      {"channels", channels},
                      {"extras", {{"fps", mo.fps}, {"frames", T}}}});
   }
+  if (!extensions.empty()) g["extensionsUsed"] = extensions;
   g["nodes"] = nodes;
   g["meshes"] = meshes;
   if (!anims.empty()) g["animations"] = anims;

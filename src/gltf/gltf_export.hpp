@@ -5,9 +5,11 @@
 //   skin 0         joints = nodes 0..J-1, inverse bind matrices = translation by -rest_j, so the
 //                  glTF joint matrix of joint j is exactly kinesplat's skinning transform A_j
 //   mesh "avatar_mesh" (mesh): the avatar's canonical template surface at rest (TRIANGLES),
-//                  NORMAL, COLOR_0 (linear RGB: the band-0 colour of the Gaussians anchored at
-//                  each vertex, sRGB-decoded), JOINTS_0 / WEIGHTS_0 (top 4 of those Gaussians'
-//                  skin weights, normalised)
+//                  NORMAL, JOINTS_0 / WEIGHTS_0 (top 4 of the skin weights of the Gaussians at
+//                  each vertex, normalised) and its colour baked from the Gaussians: a PNG
+//                  base-colour texture over the project's own UV atlas (TEXCOORD_0; vertices on
+//                  chart borders copied per chart) or, with vertex_colors, COLOR_0 (linear RGB);
+//                  an unlit material (KHR_materials_unlit: the colours have the lighting in them)
 //   mesh "avatar_splats" (splats): the canonical Gaussians as a POINTS primitive with the
 //                  KHR_gaussian_splatting attributes (ROTATION unit xyzw, linear SCALE,
 //                  post-sigmoid OPACITY, SH_DEGREE_l_COEF_n), COLOR_0 (linear RGBA fallback) and
@@ -23,26 +25,17 @@
 #include <vector>
 
 #include "avatar/avatar.hpp"
+#include "gltf/color_bake.hpp"
 #include "motion/motion.hpp"
 
 namespace ks {
 
 struct GltfExportOptions {
-  bool mesh = true;    // the skinned template surface with vertex colours
-  bool splats = true;  // the KHR_gaussian_splatting POINTS primitive
+  bool mesh = true;            // the skinned template surface
+  bool splats = true;          // the KHR_gaussian_splatting POINTS primitive
+  bool vertex_colors = false;  // the mesh's colour as COLOR_0 instead of a texture over a UV atlas
+  TextureBakeOptions texture;  // the atlas and the bake (gltf/color_bake.hpp)
 };
-
-// Per template vertex: its colour and skin weights baked from the Gaussians. Each Gaussian is
-// assigned to the template vertex nearest its anchor; a vertex takes the opacity-weighted mean of
-// its Gaussians' band-0 colours (SH dc * sh::kC0 + 0.5, clamped to [0, 1]; display sRGB) and their
-// opacity-weighted skin weights reduced to the top 4 (body/skin_weights.hpp); a vertex no
-// Gaussian is assigned to takes the Gaussian whose anchor is nearest.
-struct BakedVertexAttributes {
-  std::vector<float> srgb;      // 3 V
-  std::vector<int32_t> joints;  // 4 V
-  std::vector<float> weights;   // 4 V
-};
-BakedVertexAttributes bake_vertex_attributes(const Avatar& avatar);
 
 // The GLB bytes. Throws ks::Error for an avatar without Gaussians (splats) or without a template
 // surface (mesh), neither part chosen, more than 65536 joints, or an empty motion.

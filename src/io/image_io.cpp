@@ -57,7 +57,10 @@ Image resize_area(const Image& in, int w, int h) {
   return out;
 }
 
-void write_png(const std::string& path, const Image& img, int bits) {
+namespace {
+
+// `img` as an OpenCV matrix of 8 or 16 bits in OpenCV's channel order (BGR, BGRA).
+cv::Mat to_png_mat(const Image& img, int bits) {
   if (bits != 8 && bits != 16) throw Error("PNG bit depth must be 8 or 16");
   if (img.channels != 1 && img.channels != 3 && img.channels != 4)
     throw Error("PNG needs 1, 3 or 4 channels");
@@ -68,6 +71,21 @@ void write_png(const std::string& path, const Image& img, int bits) {
   f.convertTo(out, CV_MAKETYPE(bits == 8 ? CV_8U : CV_16U, c), scale);  // saturating
   if (c == 3) cv::cvtColor(out, out, cv::COLOR_RGB2BGR);
   if (c == 4) cv::cvtColor(out, out, cv::COLOR_RGBA2BGRA);
+  return out;
+}
+
+}  // namespace
+
+std::vector<uint8_t> encode_png(const Image& img) {
+  if (img.empty()) throw Error("cannot encode an empty image as PNG");
+  const cv::Mat m = to_png_mat(img, 8);
+  std::vector<uint8_t> bytes;
+  if (!cv::imencode(".png", m, bytes)) throw Error("cannot encode a PNG");
+  return bytes;
+}
+
+void write_png(const std::string& path, const Image& img, int bits) {
+  const cv::Mat out = to_png_mat(img, bits);
   write_via_temp(path, [&](const std::string& tmp) {
     if (!cv::imwrite(tmp, out)) throw Error("cannot write PNG " + path);
   });

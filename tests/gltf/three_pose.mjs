@@ -2,7 +2,9 @@
 // and poses its skinned mesh with AnimationMixer at given frames of one clip.
 // Usage: node three_pose.mjs VIEWER_DIR FILE.glb CLIP FPS FRAME...
 // Prints JSON: {"clips": [[name, duration, tracks]], "skinned": [name, bones, vertices],
-// "points": [name, count], "frames": {"F": [x0, y0, z0, x1, ...]}} (skinned vertex positions).
+// "points": [name, count], "textures": N, "frames": {"F": [x0, y0, z0, x1, ...]}} (skinned
+// vertex positions). Node has no image decoder: the textures load as empty three.js textures
+// (counted in "textures"); tests/gltf/browser/ checks the texture itself in Chromium.
 import { readFile } from "node:fs/promises";
 import path from "node:path";
 import { pathToFileURL } from "node:url";
@@ -14,9 +16,18 @@ const { GLTFLoader } = await import(
   pathToFileURL(path.join(three, "examples", "jsm", "loaders", "GLTFLoader.js")).href);
 
 const buf = await readFile(file);
-const gltf = await new GLTFLoader().parseAsync(
+let textures = 0;
+const loader = new GLTFLoader().register(() => ({
+  name: "kinesplat_node_textures",
+  loadTexture: () => {
+    ++textures;
+    return Promise.resolve(new THREE.Texture());
+  },
+}));
+const gltf = await loader.parseAsync(
   buf.buffer.slice(buf.byteOffset, buf.byteOffset + buf.byteLength), "");
 const out = { clips: gltf.animations.map((c) => [c.name, c.duration, c.tracks.length]), frames: {} };
+out.textures = textures;
 let mesh = null;
 gltf.scene.traverse((o) => {
   if (o.isSkinnedMesh && !mesh) mesh = o;
