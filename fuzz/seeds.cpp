@@ -18,8 +18,10 @@
 #include "dataset/dataset.hpp"
 #include "fit/fit_file.hpp"
 #include "gaussians/ply.hpp"
+#include "gltf/glb.hpp"
 #include "io/image_io.hpp"
 #include "io/npz.hpp"
+#include "motion/bvh_motion.hpp"
 #include "perceive/openpose.hpp"
 
 namespace fs = std::filesystem;
@@ -218,6 +220,39 @@ int main(int argc, char** argv) {
       const double fps = 60;
       a[D == 165 ? "mocap_frame_rate" : "mocap_framerate"] = NpyArray::from_doubles({}, &fps);
       put("fuzz_amass", name + ".npz", npz_bytes(a, true));
+    }
+    // BVH: the default body's skeleton as `export --bvh` writes it (two frames), and a small
+    // Mixamo-named chain with an End Site and a root without position channels.
+    {
+      const BodyModel& m = default_body_model();
+      BodyParams zero;
+      zero.betas = Eigen::VectorXd::Zero(m.num_betas);
+      zero.body_pose = Eigen::VectorXd::Zero(3 * m.num_body_pose_joints());
+      const BodyState rest = body_forward(m, zero);
+      std::vector<Eigen::MatrixXd> poses(2, Eigen::MatrixXd::Zero(m.num_joints(), 3));
+      poses[1](1, 0) = 0.4;
+      poses[1](18, 2) = -0.6;
+      const std::vector<Eigen::Vector3d> transl = {Eigen::Vector3d::Zero(),
+                                                   Eigen::Vector3d(0.02, 0, 0.05)};
+      const std::string text =
+          format_bvh(poses_to_bvh(m.parents, m.joint_names, rest.rest_joints, poses, transl, 30));
+      put("fuzz_bvh", "smpl.bvh", std::vector<uint8_t>(text.begin(), text.end()));
+      const std::string mixamo =
+          "HIERARCHY\nROOT mixamorig:Hips\n{\n OFFSET 0 100 0\n CHANNELS 3 Zrotation Xrotation "
+          "Yrotation\n JOINT mixamorig:LeftUpLeg\n {\n  OFFSET 10 -5 0\n  CHANNELS 3 Zrotation "
+          "Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 -40 0\n  }\n }\n}\nMOTION\nFrames: "
+          "2\nFrame Time: 0.0333333\n0 0 0 0 0 0\n10 -5 2.5 30 0 0\n";
+      put("fuzz_bvh", "mixamo_chain.bvh", std::vector<uint8_t>(mixamo.begin(), mixamo.end()));
+    }
+    // GLB: a container with float, byte and short accessors and a JSON chunk that uses them.
+    {
+      GlbBuilder b;
+      b.gltf["asset"] = {{"version", "2.0"}};
+      b.add_floats({0, 0, 0, 1, 0, 0, 0, 1, 0}, "VEC3", kGltfArrayBuffer, true);
+      b.add_uints({0, 1, 2, 3}, "VEC4", kGltfUnsignedByte, kGltfArrayBuffer);
+      b.add_uints({0, 1, 2}, "SCALAR", kGltfUnsignedShort, kGltfElementArrayBuffer);
+      b.add_floats({0.f, 0.5f}, "SCALAR", 0, true);
+      put("fuzz_glb", "accessors.glb", b.finish());
     }
     // Keypoints: OpenPose BODY_25 with a face (write_openpose), COCO-18, COCO annotations and
     // results, DWPose's normalised canvas.

@@ -19,9 +19,11 @@
 #include "fit/fit_file.hpp"
 #include "fuzz_common.hpp"
 #include "gaussians/ply.hpp"
+#include "gltf/glb.hpp"
 #include "io/image_io.hpp"
 #include "io/npz.hpp"
 #include "motion/amass.hpp"
+#include "motion/bvh_motion.hpp"
 #include "perceive/openpose.hpp"
 #include "perceive/photo.hpp"
 
@@ -99,6 +101,37 @@ inline void amass(const uint8_t* data, size_t size) {
   KS_FUZZ_EXPECT_ONLY_KS_ERROR({
     const Motion m = load_amass_npz(path, 0);
     (void)m;
+  });
+}
+
+// BVH motions as `animate --motion FILE.bvh` loads them: parsed, mapped onto the body's joints
+// and retargeted; then written back as BVH text.
+inline void bvh(const uint8_t* data, size_t size) {
+  const std::string path = input_file(data, size, "motion.bvh");
+  KS_FUZZ_EXPECT_ONLY_KS_ERROR({
+    const Bvh b = read_bvh(path);
+    (void)format_bvh(b);
+    const Motion m = load_bvh_motion(path, 0);
+    (void)m;
+  });
+}
+
+// GLB files as the glTF readers read them (read_glb): the container, then every accessor read
+// as floats and, for integer ones, as unsigned integers.
+inline void glb(const uint8_t* data, size_t size) {
+  const std::string path = input_file(data, size, "avatar.glb");
+  KS_FUZZ_EXPECT_ONLY_KS_ERROR({
+    const GlbDocument d = read_glb(path);
+    const nlohmann::json acc = d.gltf.value("accessors", nlohmann::json::array());
+    if (!acc.is_array()) return;
+    for (int i = 0; i < int(acc.size()) && i < 64; ++i) {
+      KS_FUZZ_EXPECT_ONLY_KS_ERROR({
+        (void)d.accessor_count(i);
+        (void)d.accessor_components(i);
+        (void)d.read_floats(i);
+      });
+      KS_FUZZ_EXPECT_ONLY_KS_ERROR({ (void)d.read_uints(i); });
+    }
   });
 }
 
@@ -196,6 +229,8 @@ inline const std::map<std::string, std::function<void(const uint8_t*, size_t)>>&
       {"fuzz_dataset", dataset},
       {"fuzz_avatar", avatar},
       {"fuzz_amass", amass},
+      {"fuzz_bvh", bvh},
+      {"fuzz_glb", glb},
       {"fuzz_camera", camera},
       {"fuzz_params", params},
       {"fuzz_keypoints", keypoints},

@@ -16,6 +16,7 @@
 #include "core/rotation.hpp"
 #include "gltf/glb.hpp"
 #include "gltf/gltf_export.hpp"
+#include "motion/amass.hpp"
 #include "raster/sh.hpp"
 
 namespace ks {
@@ -325,6 +326,12 @@ TEST(Gltf, CommandLine) {
   const GlbDocument d = read_glb(out);
   EXPECT_EQ(d.gltf["animations"].size(), 2u);
   EXPECT_EQ(d.gltf["meshes"].size(), 2u);
+  // A motion as `track` writes it (motion.npz, AMASS layout) is an animation too.
+  const std::string npz = (dir.path() / "motion.npz").string();
+  save_amass_npz(npz, builtin_motion("wave", 5));
+  r = test::run_cli("export '" + avatar + "' --gltf '" + out + "' --motion '" + npz + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(read_glb(out).gltf["animations"][0]["extras"]["frames"], 5);
   r = test::run_cli("export '" + avatar + "' --gltf '" + out + "' --mesh --vertex-colors");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(read_glb(out).gltf["meshes"].size(), 1u);

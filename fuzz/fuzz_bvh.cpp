@@ -1,0 +1,7 @@
+// libFuzzer harness fuzz_bvh: see ks::fuzz::bvh in fuzz/targets.hpp.
+#include "targets.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  ks::fuzz::bvh(data, size);
+  return 0;
+}
