@@ -194,30 +194,54 @@ struct AccessorView {
   bool normalized = false;
 };
 
+// A non-negative integer field of a glTF object: an integer JSON number in [0, max] (glTF's
+// counts, indices and offsets); `fallback` where it is missing (< 0: required). Anything else
+// (a fraction, a number out of range, a string) is a ks::Error naming the field.
+int64_t index_field(const nlohmann::json& obj, const char* key, int64_t fallback, int64_t max,
+                    const std::string& name) {
+  const auto it = obj.find(key);
+  if (it == obj.end()) {
+    if (fallback < 0) throw Error(name + ": no \"" + key + "\"");
+    return fallback;
+  }
+  if (it->is_number_unsigned() && it->get<uint64_t>() <= uint64_t(max))
+    return int64_t(it->get<uint64_t>());
+  if (it->is_number_integer() && it->get<int64_t>() >= 0 && it->get<int64_t>() <= max)
+    return it->get<int64_t>();
+  throw Error(name + ": \"" + key + "\" must be an integer in [0, " + std::to_string(max) +
+              "], not " + it->dump());
+}
+
 AccessorView view_of(const GlbDocument& d, int index) {
   const auto& accs = d.gltf.value("accessors", nlohmann::json::array());
-  if (index < 0 || size_t(index) >= accs.size() || !accs[size_t(index)].is_object())
+  if (index < 0 || !accs.is_array() || size_t(index) >= accs.size() ||
+      !accs[size_t(index)].is_object())
     throw Error(d.what + ": no accessor " + std::to_string(index));
   const auto& a = accs[size_t(index)];
   const std::string name = d.what + ": accessor " + std::to_string(index);
+  constexpr int64_t kMaxInt = std::numeric_limits<int>::max();
+  const auto big = int64_t(std::numeric_limits<uint32_t>::max());
   try {
     AccessorView v;
-    v.count = a.at("count").get<int>();
+    v.count = int(index_field(a, "count", -1, kMaxInt, name));
     v.comps = gltf_type_components(a.at("type").get<std::string>());
-    v.component = a.at("componentType").get<int>();
+    v.component = int(index_field(a, "componentType", -1, kMaxInt, name));
     v.normalized = a.value("normalized", false);
     const int cb = component_bytes(v.component);
-    if (v.comps == 0 || cb == 0 || v.count < 0) throw Error(name + ": unknown type or component");
-    const int bv = a.at("bufferView").get<int>();
+    if (v.comps == 0 || cb == 0) throw Error(name + ": unknown type or component");
+    const int64_t bv = index_field(a, "bufferView", -1, kMaxInt, name);
     const auto& views = d.gltf.at("bufferViews");
-    if (bv < 0 || size_t(bv) >= views.size())
+    if (!views.is_array() || size_t(bv) >= views.size() || !views[size_t(bv)].is_object())
       throw Error(name + ": no buffer view " + std::to_string(bv));
     const auto& view = views[size_t(bv)];
-    if (view.value("buffer", -1) != 0) throw Error(name + ": not in the GLB's binary buffer");
-    const size_t voff = view.value("byteOffset", size_t(0)), vlen = view.at("byteLength");
+    const std::string vname = d.what + ": buffer view " + std::to_string(bv);
+    if (index_field(view, "buffer", -1, kMaxInt, vname) != 0)
+      throw Error(name + ": not in the GLB's binary buffer");
+    const auto voff = size_t(index_field(view, "byteOffset", 0, big, vname));
+    const auto vlen = size_t(index_field(view, "byteLength", -1, big, vname));
     const size_t elem = size_t(v.comps) * size_t(cb);
-    v.stride = view.value("byteStride", elem);
-    const size_t aoff = a.value("byteOffset", size_t(0));
+    v.stride = size_t(index_field(view, "byteStride", int64_t(elem), 252, vname));
+    const auto aoff = size_t(index_field(a, "byteOffset", 0, big, name));
     if (voff > d.bin.size() || vlen > d.bin.size() - voff)
       throw Error(name + ": buffer view outside the BIN chunk");
     if (v.count > 0 &&

@@ -310,6 +310,15 @@ TEST(Gltf, MalformedGlbIsAClearError) {
   d.gltf["bufferViews"][0]["byteLength"] = 1 << 30;
   EXPECT_THROW(d.read_floats(0), Error);
   EXPECT_THROW(d.read_floats(9999), Error);
+  // Integer fields that are fractions, out of range or negative (fuzz_glb's finding: 5e26).
+  for (const char* bad : {"5e26", "1.5", "-1", "\"3\""}) {
+    GlbDocument e = parse_glb(good, "acc.glb");
+    e.gltf["accessors"][0]["count"] = nlohmann::json::parse(bad);
+    EXPECT_THROW(e.read_floats(0), Error) << bad;
+    e = parse_glb(good, "acc.glb");
+    e.gltf["bufferViews"][0]["byteOffset"] = nlohmann::json::parse(bad);
+    EXPECT_THROW(e.read_floats(0), Error) << bad;
+  }
   // A file that is missing.
   EXPECT_THROW(read_glb("/nonexistent/x.glb"), Error);
 }
