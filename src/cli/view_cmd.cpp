@@ -11,8 +11,9 @@
 #include "avatar/avatar.hpp"
 #include "cli/registry.hpp"
 #include "core/error.hpp"
-#include "web/http_server.hpp"
+#include "web/static_files.hpp"
 #include "web/web_export.hpp"
+#include "web/web_server.hpp"
 
 namespace fs = std::filesystem;
 
@@ -26,7 +27,7 @@ void on_signal(int) {
 struct ViewArgs {
   std::string avatar;
   std::vector<std::string> motions;
-  int port = ks::HttpServerOptions{}.port;
+  int port = ks::WebServerOptions{}.port;
 };
 
 // Removes a folder when it goes out of scope.
@@ -55,9 +56,10 @@ void run_view(const ViewArgs& args) {
   const fs::path site = tmp.path / "site";
   ks::export_web_site(avatar, motions, site.string(), opt);
 
-  ks::HttpServerOptions so;
+  ks::WebServerOptions so;
   so.port = args.port;
-  ks::StaticHttpServer server(site.string(), so);
+  ks::WebServer server(so);
+  ks::serve_folder(server, "", site);
   struct sigaction sa {};
   sa.sa_handler = on_signal;
   sigemptyset(&sa.sa_mask);
