@@ -6,7 +6,7 @@ DEMO_DIR ?= demo-out
 
 DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libopencv-dev \
   nlohmann-json3-dev libcli11-dev libgtest-dev libbenchmark-dev zlib1g-dev ffmpeg libceres-dev \
-  chromium blender libcpp-httplib-dev
+  chromium blender python3-numpy libcpp-httplib-dev
 # The perceive helper (Node): its packages pinned by its package-lock.json, its models by models.json.
 PERCEIVE_HELPER := helpers/perceive
 
