@@ -47,6 +47,11 @@ ks::cli::CommandGroup group(29, [](CLI::App& app) {
   sub->add_option("--iters", a->o.reconstruct.train.iterations, "Reconstruct steps")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000000));
+  sub->add_option("--subdivide", a->o.reconstruct.train.subdivide,
+                  "Reconstruct: Loop subdivision levels of the body template (each level about 4x "
+                  "the Gaussians; 0 for a small, quick avatar)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 3));
   sub->add_option("--density", a->o.reconstruct.density, "Density control: gpdc|vertex|naive|off")
       ->capture_default_str();
   sub->add_option("--seed", a->o.reconstruct.train.seed, "Reconstruct's random seed")

@@ -8,7 +8,7 @@
 //    still sends (say the rest of a refused upload) read and dropped for a short while, so that
 //    the kernel does not answer them with a reset that would discard the reply unread.
 // Reads and writes wait at most the read / write time-out.
-#include <httplib.h>
+#include "web/httplib.hpp"
 
 #include <string>
 

@@ -52,6 +52,8 @@ int hex_value(char c) {
   return -1;
 }
 
+}  // namespace
+
 bool percent_decode(const std::string& in, std::string& out) {
   out.clear();
   for (size_t i = 0; i < in.size(); ++i) {
@@ -67,8 +69,6 @@ bool percent_decode(const std::string& in, std::string& out) {
   }
   return true;
 }
-
-}  // namespace
 
 bool path_within(const fs::path& root, const fs::path& p) {
   std::error_code ec;

@@ -15,6 +15,9 @@ namespace ks {
 // when unknown.
 std::string mime_type_for(const std::string& filename);
 
+// Decodes %XX escapes ('+' stays '+'); false for a malformed escape.
+bool percent_decode(const std::string& in, std::string& out);
+
 // True when `p` lies inside `root` (or is the root) once symbolic links are resolved.
 bool path_within(const std::filesystem::path& root, const std::filesystem::path& p);
 

@@ -262,14 +262,16 @@ std::string WebServer::url() const {
   return "http://" + (v6 ? "[" + host_ + "]" : host_) + ":" + std::to_string(port_) + "/";
 }
 
-void WebServer::add_route(const std::string& pattern, const std::string& method, size_t max_body) {
+void WebServer::add_route(const std::string& pattern, const std::string& method, size_t max_body,
+                          TooLarge too_large) {
   for (auto& r : routes_)
     if (r.pattern == pattern) {
       r.methods.push_back(method);
       r.max_body = std::max(r.max_body, max_body);
+      if (too_large) r.too_large = too_large;
       return;
     }
-  routes_.push_back({pattern, std::regex(pattern), {method}, max_body});
+  routes_.push_back({pattern, std::regex(pattern), {method}, max_body, too_large});
 }
 
 void WebServer::get(const std::string& pattern, Handler h) {
@@ -282,8 +284,9 @@ void WebServer::post(const std::string& pattern, Handler h, size_t max_body) {
   impl_->Post(pattern, std::move(h));
 }
 
-void WebServer::post(const std::string& pattern, ReaderHandler h, size_t max_body) {
-  add_route(pattern, "POST", max_body);
+void WebServer::post(const std::string& pattern, ReaderHandler h, size_t max_body,
+                     TooLarge too_large) {
+  add_route(pattern, "POST", max_body, std::move(too_large));
   impl_->Post(pattern, std::move(h));
   // The library bounds every body by one limit: the largest route's (each route's own limit is
   // checked in check()).
@@ -367,6 +370,8 @@ int WebServer::check(const Request& req, Response& res) const {
     } catch (const std::exception&) {
       return refuse(400, "Content-Length \"" + len + "\" is not a number");
     }
+    if (n > route->max_body && route->too_large)
+      return refuse(413, route->too_large(size_t(n), route->max_body));
     if (n > route->max_body)
       return refuse(413, "the request body (" + std::to_string(n) + " bytes) is over the " +
                              std::to_string(route->max_body) + " bytes this page takes");

@@ -15,7 +15,7 @@
 //    request that changes something (not GET / HEAD) from a page must come from this origin.
 //  - Connections close gracefully: after a refusal the rest of the request is read and dropped
 //    for a moment, so the client reads the reply instead of a reset.
-#include <httplib.h>
+#include "web/httplib.hpp"
 
 #include <atomic>
 #include <cstddef>
@@ -59,8 +59,10 @@ class WebServer {
   // in req.matches). Register before serving starts. `max_body` bounds the request body.
   void get(const std::string& pattern, Handler h);  // GET and HEAD
   void post(const std::string& pattern, Handler h, size_t max_body = 64 * 1024);
-  // The handler reads the body itself (streamed, up to max_body bytes).
-  void post(const std::string& pattern, ReaderHandler h, size_t max_body);
+  // The handler reads the body itself (streamed, up to max_body bytes). `too_large` words the
+  // 413 refusal of a longer body (given its declared length and the limit).
+  using TooLarge = std::function<std::string(size_t declared, size_t limit)>;
+  void post(const std::string& pattern, ReaderHandler h, size_t max_body, TooLarge too_large = {});
   void del(const std::string& pattern, Handler h);
 
   int port() const { return port_; }
@@ -92,9 +94,11 @@ class WebServer {
     std::regex re;
     std::vector<std::string> methods;
     size_t max_body = 0;
+    TooLarge too_large;
   };
   int check(const Request& req, Response& res) const;  // 0: go on; else the status answered
-  void add_route(const std::string& pattern, const std::string& method, size_t max_body);
+  void add_route(const std::string& pattern, const std::string& method, size_t max_body,
+                 TooLarge too_large = {});
 
   std::unique_ptr<Impl> impl_;
   std::vector<Route> routes_;
