@@ -520,13 +520,13 @@ TEST_F(GltfBrowser, DemoAvatarFigures) {
   const Image babylon_posed = read_image(b["posed_png"].get<std::string>(), 3);
   std::printf(
       "Babylon.js %s: %d splats (of %d Gaussians) in a GaussianSplattingMesh, skinned mesh %s; "
-      "load %.0f ms, settled rest render %.0f ms (%d frames), next %.0f ms; IoU %.4f with "
-      "kinesplat's rest render, PSNR %.2f dB; after the walk group went to frame %d %.4f of the "
-      "pixels changed; groups %s\n",
+      "load %.0f ms, settled rest render %.0f ms (%d frames), next %.0f ms, page %.0f ms; IoU "
+      "%.4f with kinesplat's rest render, PSNR %.2f dB; after the walk group went to frame %d "
+      "%.4f of the pixels changed; groups %s\n",
       b["version"].get<std::string>().c_str(), b["splat_count"].get<int>(), avatar.num_gaussians(),
       b["skinned_mesh"].get<bool>() ? "loaded" : "missing", b["timings"]["load_ms"].get<double>(),
       b["timings"]["rest_render_ms"].get<double>(), b["frames_to_settle"].get<int>(),
-      b["timings"]["render_ms"].get<double>(),
+      b["timings"]["render_ms"].get<double>(), b["timings"]["wall_ms"].get<double>(),
       iou(differs_from(babylon, kBackground), above_half(rest.alpha)), psnr(babylon, rest.color),
       kDemoFrame, b["posed"]["changed_share"].get<double>(), b["animation_groups"].dump().c_str());
   EXPECT_EQ(b["splat_count"], avatar.num_gaussians());
