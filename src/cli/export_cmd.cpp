@@ -21,7 +21,8 @@ ks::cli::CommandGroup group(80, [](CLI::App& app) {
   struct Args {
     std::string avatar, out, pose, web, gltf, bvh;
     std::vector<std::string> motions;
-    bool only_mesh = false, only_splats = false, both = false, vertex_colors = false;
+    bool only_mesh = false, only_splats = false, both = false, vertex_colors = false,
+         template_surface = false;
   };
   auto args = std::make_shared<Args>();
   auto* sub = app.add_subcommand(
@@ -55,6 +56,11 @@ ks::cli::CommandGroup group(80, [](CLI::App& app) {
   auto* vc = sub->add_flag("--vertex-colors", args->vertex_colors,
                            "With --gltf: the mesh's colour as COLOR_0 instead of a texture "
                            "(the default: a PNG over the project's UV atlas)");
+  auto* ts = sub->add_flag("--template-surface", args->template_surface,
+                           "With --gltf: the mesh at the template's own (smooth) vertices instead "
+                           "of where the splats are (the default: each vertex at its Gaussians' "
+                           "centres, out by their reach; docs/export.md)");
+  ts->needs(gltf)->excludes(s);
   m->excludes(s)->excludes(both)->needs(gltf);
   s->excludes(both)->needs(gltf);
   both->needs(gltf);
@@ -85,6 +91,7 @@ ks::cli::CommandGroup group(80, [](CLI::App& app) {
       if (args->only_mesh) opt.splats = false;
       if (args->only_splats) opt.mesh = false;
       opt.vertex_colors = args->vertex_colors;
+      opt.template_surface = args->template_surface;
       std::vector<ks::Motion> motions;
       for (const auto& name : args->motions) motions.push_back(ks::load_motion(name));
       const auto t0 = std::chrono::steady_clock::now();

@@ -109,6 +109,37 @@ BakedVertexAttributes bake_vertex_attributes(const Avatar& a,
   return out;
 }
 
+Eigen::MatrixXd splat_surface(const Avatar& a, const std::vector<std::vector<int>>& members) {
+  check_avatar(a);
+  const Eigen::MatrixXd& T = a.template_vertices;
+  if (members.size() != size_t(T.rows()))
+    throw Error("gltf: the Gaussians per vertex do not match the avatar's template");
+  const Eigen::MatrixXd normals = vertex_normals(T, a.template_faces);
+  const Gaussians& g = a.gaussians;
+  Eigen::MatrixXd out = T;
+  for (long v = 0; v < T.rows(); ++v) {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    double wsum = 0, reach = 0;
+    for (int i : members[size_t(v)]) {
+      const size_t n = size_t(i);
+      const double alpha = sigmoid(g.opacity_logits[n]), w = std::max(1e-6, alpha);
+      double s[3];
+      for (int k = 0; k < 3; ++k) s[k] = std::exp(double(g.log_scales[3 * n + size_t(k)]));
+      std::sort(s, s + 3);
+      const double radius = 0.5 * (s[1] + s[2]);
+      const double r = alpha > 0.5 ? radius * std::sqrt(2 * std::log(2 * alpha)) : 0.0;
+      centre += w * Eigen::Vector3d(g.means[3 * n], g.means[3 * n + 1], g.means[3 * n + 2]);
+      reach += w * r;
+      wsum += w;
+    }
+    if (!(wsum > 0)) continue;
+    Eigen::Vector3d nrm = normals.row(v).transpose();
+    if (!nrm.allFinite()) nrm.setZero();
+    out.row(v) = (centre / wsum + (reach / wsum) * nrm).transpose();
+  }
+  return out;
+}
+
 namespace {
 
 // The Gaussians a texel's colour is drawn from, in the form the bake reads: rotation, inverse
@@ -168,16 +199,18 @@ void dilate(Image& img, std::vector<char>& filled, int rings) {
 
 }  // namespace
 
-BakedTexture bake_texture(const Avatar& a, const BakedVertexAttributes& vc,
+BakedTexture bake_texture(const Avatar& a, const Eigen::MatrixXd& V,
+                          const BakedVertexAttributes& vc,
                           const std::vector<std::vector<int>>& members,
                           const TextureBakeOptions& opt) {
   check_avatar(a);
-  const Eigen::MatrixXd& V = a.template_vertices;
+  if (V.rows() != a.template_vertices.rows() || V.cols() != 3)
+    throw Error("gltf: the surface to bake onto does not match the avatar's template");
   const Eigen::MatrixXi& F = a.template_faces;
   if (vc.srgb.size() != 3 * size_t(V.rows()) || members.size() != size_t(V.rows()))
     throw Error("gltf: the vertex colours do not match the avatar's template");
   BakedTexture out;
-  out.atlas = build_uv_atlas(V, F, opt.atlas);
+  out.atlas = build_uv_atlas(a.template_vertices, F, opt.atlas);  // charts on the smooth template
   const UvAtlas& at = out.atlas;
   const int S = at.size;
   // Which face each texel centre lies in (the last one drawn where faces touch).

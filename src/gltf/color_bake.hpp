@@ -33,6 +33,13 @@ BakedVertexAttributes bake_vertex_attributes(const Avatar& avatar,
                                              const std::vector<std::vector<int>>& members);
 BakedVertexAttributes bake_vertex_attributes(const Avatar& avatar);
 
+// The surface the splats show, per template vertex: moved to the opacity-weighted mean of its
+// Gaussians' centres (their learned offsets), then out along the template's normal by the
+// distance at which such a Gaussian seen edge-on falls to half coverage, r = s sqrt(2 ln(2 a))
+// (s: its tangential radius, the mean of its two largest scales; a: its opacity; 0 for a <= 0.5),
+// opacity-weighted likewise. Skinned with the vertex's weights it goes where the splats go.
+Eigen::MatrixXd splat_surface(const Avatar& avatar, const std::vector<std::vector<int>>& members);
+
 struct TextureBakeOptions {
   UvAtlasOptions atlas;
   // Weight of the vertex colours (interpolated over the face) beside the Gaussians' at a texel:
@@ -40,18 +47,20 @@ struct TextureBakeOptions {
   float vertex_colour_weight = 1e-3f;
 };
 
-// The template's colour as a texture: the atlas, and an RGB image (display sRGB, as glTF's
-// baseColorTexture wants) of atlas.size x atlas.size. A texel on a face takes the opacity- and
+// The colour as a texture: the atlas (laid out on the template, whose normals are smooth), and
+// an RGB image (display sRGB, as glTF's baseColorTexture wants) of atlas.size x atlas.size. A
+// texel on a face stands for the point of `surface` (the template's topology: the template
+// itself or splat_surface) at the same barycentric coordinates; it takes the opacity- and
 // density-weighted mean of the band-0 colours of the Gaussians hung on the face's vertices and
-// their neighbours, each weighted by its density at the texel's surface point with the offset
-// along the face's normal removed (so a splat lifted off the surface still colours it); texels
-// off every face take their neighbours' colour for `padding` + 1 rings (the gutter), the rest
-// stay black.
+// their neighbours, each weighted by its density there with the offset along the face's normal
+// removed (so a splat lifted off the surface still colours it); texels off every face take their
+// neighbours' colour for `padding` + 1 rings (the gutter), the rest stay black.
 struct BakedTexture {
   UvAtlas atlas;
   Image image;
 };
-BakedTexture bake_texture(const Avatar& avatar, const BakedVertexAttributes& vertex_colours,
+BakedTexture bake_texture(const Avatar& avatar, const Eigen::MatrixXd& surface,
+                          const BakedVertexAttributes& vertex_colours,
                           const std::vector<std::vector<int>>& members,
                           const TextureBakeOptions& opt = {});
 

@@ -59,13 +59,15 @@ json add_mesh(GlbBuilder& b, const Avatar& a, const GltfExportOptions& opt, int 
     throw Error("gltf: the avatar's template has a face out of range");
   const auto members = gaussians_per_vertex(a);
   const BakedVertexAttributes baked = bake_vertex_attributes(a, members);
-  const Eigen::MatrixXd normals = vertex_normals(a.template_vertices, a.template_faces);
+  // The surface written: where the splats are (the default), or the template itself.
+  const Eigen::MatrixXd P = opt.template_surface ? a.template_vertices : splat_surface(a, members);
+  const Eigen::MatrixXd normals = vertex_normals(P, a.template_faces);
   // The vertices written: the template's own, or with a texture its atlas copies.
   std::vector<int> source;
   Eigen::MatrixXi faces = a.template_faces;
   BakedTexture tex;
   if (!opt.vertex_colors) {
-    tex = bake_texture(a, baked, members, opt.texture);
+    tex = bake_texture(a, P, baked, members, opt.texture);
     source = tex.atlas.source;
     faces = tex.atlas.faces;
   } else {
@@ -82,7 +84,7 @@ json add_mesh(GlbBuilder& b, const Avatar& a, const GltfExportOptions& opt, int 
     if (!n.allFinite() || n.norm() < 1e-6f) n = Eigen::Vector3f(0, 1, 0);
     n.normalize();
     for (int k = 0; k < 3; ++k) {
-      pos[3 * w + size_t(k)] = float(a.template_vertices(v, k));
+      pos[3 * w + size_t(k)] = float(P(v, k));
       nrm[3 * w + size_t(k)] = n[k];
       if (opt.vertex_colors)
         col[3 * w + size_t(k)] = srgb_to_linear(baked.srgb[3 * size_t(v) + size_t(k)]);

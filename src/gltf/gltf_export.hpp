@@ -34,7 +34,8 @@ struct GltfExportOptions {
   bool mesh = true;            // the skinned template surface
   bool splats = true;          // the KHR_gaussian_splatting POINTS primitive
   bool vertex_colors = false;  // the mesh's colour as COLOR_0 instead of a texture over a UV atlas
-  TextureBakeOptions texture;  // the atlas and the bake (gltf/color_bake.hpp)
+  bool template_surface = false;  // the template's own vertices, not the splats' (splat_surface)
+  TextureBakeOptions texture;     // the atlas and the bake (gltf/color_bake.hpp)
 };
 
 // The GLB bytes. Throws ks::Error for an avatar without Gaussians (splats) or without a template

@@ -198,8 +198,11 @@ UvAtlas build_uv_atlas(const Eigen::MatrixXd& V, const Eigen::MatrixXi& F,
       c.h = int(std::ceil(c.extent.y() * scale)) + 1 + 2 * opt.padding;
       area += double(c.w) * c.h;
     }
-    std::stable_sort(order.begin(), order.end(),
-                     [&](int a, int b) { return charts[size_t(a)].h > charts[size_t(b)].h; });
+    std::iota(order.begin(), order.end(), 0);  // the same order for the same scale, always
+    std::sort(order.begin(), order.end(), [&](int a, int b) {
+      const int ha = charts[size_t(a)].h, hb = charts[size_t(b)].h;
+      return ha != hb ? ha > hb : a < b;
+    });
     return area;
   };
   double s = opt.texels_per_edge / std::max(mean_edge_length(V, F), 1e-9);

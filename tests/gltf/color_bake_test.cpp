@@ -45,7 +45,7 @@ TEST(ColorBake, TextureShowsTheGaussiansColours) {
   const Avatar a = two_colour_avatar();
   const auto members = gaussians_per_vertex(a);
   const BakedVertexAttributes vc = bake_vertex_attributes(a, members);
-  const BakedTexture t = bake_texture(a, vc, members);
+  const BakedTexture t = bake_texture(a, a.template_vertices, vc, members);
   ASSERT_EQ(t.image.width, t.atlas.size);
   ASSERT_EQ(t.image.channels, 3);
   int left = 0, right = 0;
@@ -75,6 +75,7 @@ TEST(ColorBake, GlbCarriesTheTexture) {
   const Avatar a = two_colour_avatar();
   GltfExportOptions o;
   o.splats = false;
+  o.template_surface = true;  // the bake below is over the template
   const GlbDocument d = parse_glb(avatar_gltf(a, {}, o), "tex.glb");
   const auto& g = d.gltf;
   const auto& prim = g["meshes"][0]["primitives"][0];
@@ -90,7 +91,8 @@ TEST(ColorBake, GlbCarriesTheTexture) {
   const cv::Mat img = decode_image_file(
       std::vector<uint8_t>(d.bin.begin() + long(off), d.bin.begin() + long(off + len)), "tex");
   const auto members = gaussians_per_vertex(a);
-  const BakedTexture t = bake_texture(a, bake_vertex_attributes(a, members), members);
+  const BakedTexture t =
+      bake_texture(a, a.template_vertices, bake_vertex_attributes(a, members), members);
   ASSERT_EQ(img.cols, t.atlas.size);
   ASSERT_EQ(img.rows, t.atlas.size);
   ASSERT_EQ(img.type(), CV_8UC3);

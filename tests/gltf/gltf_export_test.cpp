@@ -16,6 +16,7 @@
 #include "core/rotation.hpp"
 #include "gltf/glb.hpp"
 #include "gltf/gltf_export.hpp"
+#include "mesh/trimesh.hpp"
 #include "motion/amass.hpp"
 #include "raster/sh.hpp"
 
@@ -93,8 +94,9 @@ TEST(Gltf, RoundTripMeshSplatsSkinAndAnimation) {
   const Avatar a = test::tiny_avatar(1);
   const Motion walk = builtin_motion("walk", 6);
   const Motion wave = builtin_motion("wave", 4);
-  GltfExportOptions vc;  // the vertex-colour mesh: one glTF vertex per template vertex
+  GltfExportOptions vc;  // the template's own vertices with their colours: one glTF vertex each
   vc.vertex_colors = true;
+  vc.template_surface = true;
   const std::vector<uint8_t> bytes = avatar_gltf(a, {walk, wave}, vc);
   const GlbDocument d = parse_glb(bytes, "mem.glb");
   const auto& g = d.gltf;
@@ -225,6 +227,30 @@ TEST(Gltf, RoundTripMeshSplatsSkinAndAnimation) {
       }
     }
   }
+}
+
+TEST(Gltf, MeshFollowsTheSplats) {
+  // tiny_avatar: template vertex v carries Gaussian v, its centre offset from the vertex, its
+  // opacity sigmoid(2) = 0.88, scales 0.05, 0.06, 0.07.
+  const Avatar a = test::tiny_avatar();
+  const Eigen::MatrixXd S = splat_surface(a, gaussians_per_vertex(a));
+  const Eigen::MatrixXd n = vertex_normals(a.template_vertices, a.template_faces);
+  const double r = 0.5 * (0.06 + 0.07) * std::sqrt(2 * std::log(2 * sigmoidf(2.f)));
+  for (long v = 0; v < S.rows(); ++v) {
+    const Eigen::Vector3d mean(a.gaussians.means[3 * size_t(v)],
+                               a.gaussians.means[3 * size_t(v) + 1],
+                               a.gaussians.means[3 * size_t(v) + 2]);
+    EXPECT_LT((S.row(v).transpose() - (mean + r * n.row(v).transpose())).norm(), 1e-5) << v;
+  }
+  // The exported mesh (vertex colours: one glTF vertex per template vertex) is that surface.
+  GltfExportOptions o;
+  o.splats = false;
+  o.vertex_colors = true;
+  const GlbDocument d = parse_glb(avatar_gltf(a, {}, o), "m");
+  const auto pos = d.read_floats(attr(d.gltf["meshes"][0]["primitives"][0], "POSITION"));
+  ASSERT_EQ(pos.size(), size_t(3 * S.rows()));
+  for (long v = 0; v < S.rows(); ++v)
+    for (int k = 0; k < 3; ++k) EXPECT_FLOAT_EQ(pos[3 * size_t(v) + size_t(k)], float(S(v, k)));
 }
 
 TEST(Gltf, MeshOnlyAndSplatsOnly) {

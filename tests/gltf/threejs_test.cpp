@@ -12,6 +12,7 @@
 #include "avatar/pose.hpp"
 #include "body/body_model.hpp"
 #include "core/fileio.hpp"
+#include "gltf/glb.hpp"
 #include "gltf/gltf_export.hpp"
 
 namespace ks {
@@ -53,29 +54,28 @@ TEST(GltfThreejs, GltfLoaderPosesTheMeshAsKinesplatDoes) {
   EXPECT_NEAR(r["clips"][1][1].get<double>(), 7 / wave.fps, 1e-5);
   EXPECT_EQ(r["skinned"][0], "avatar_mesh");
   EXPECT_EQ(r["skinned"][1], a.num_joints());
-  // The textured mesh's vertices: the atlas's copies of the template's.
-  const UvAtlas atlas =
-      build_uv_atlas(a.template_vertices, a.template_faces, GltfExportOptions{}.texture.atlas);
-  const long W = long(atlas.source.size());
+  // The mesh's vertices, joints and weights as the file holds them, skinned by kinesplat.
+  const GlbDocument d = read_glb(glb);
+  const auto& attrs = d.gltf["meshes"][0]["primitives"][0]["attributes"];
+  const auto pos = d.read_floats(attrs["POSITION"]);
+  const auto joints = d.read_uints(attrs["JOINTS_0"]);
+  const auto weights = d.read_floats(attrs["WEIGHTS_0"]);
+  const long W = long(pos.size() / 3);
   EXPECT_EQ(r["skinned"][2], W);
   EXPECT_EQ(r["points"][1], a.num_gaussians());
   EXPECT_EQ(r["textures"], 1);  // the base-colour texture
-  const BakedVertexAttributes baked = bake_vertex_attributes(a);
   for (int f : {0, 5, 11}) {
     const auto A = avatar_joint_transforms(a, walk.frames[size_t(f)]);
     const auto& p = r["frames"][std::to_string(f)];
     ASSERT_EQ(p.size(), size_t(3 * W));
     double worst = 0;
-    for (long w = 0; w < W; ++w) {
-      const long v = atlas.source[size_t(w)];
+    for (size_t w = 0; w < size_t(W); ++w) {
       Eigen::Vector4d x(0, 0, 0, 0);
-      const Eigen::Vector4d rest(a.template_vertices(v, 0), a.template_vertices(v, 1),
-                                 a.template_vertices(v, 2), 1);
-      for (int s = 0; s < 4; ++s)
-        x += double(baked.weights[4 * size_t(v) + size_t(s)]) *
-             (A[size_t(baked.joints[4 * size_t(v) + size_t(s)])] * rest);
-      for (int k = 0; k < 3; ++k)
-        worst = std::max(worst, std::abs(x[k] - p[3 * size_t(w) + size_t(k)].get<double>()));
+      const Eigen::Vector4d rest(pos[3 * w], pos[3 * w + 1], pos[3 * w + 2], 1);
+      for (size_t s = 0; s < 4; ++s)
+        x += double(weights[4 * w + s]) * (A[joints[4 * w + s]] * rest);
+      for (size_t k = 0; k < 3; ++k)
+        worst = std::max(worst, std::abs(x[long(k)] - p[3 * w + k].get<double>()));
     }
     EXPECT_LT(worst, 1e-4) << "frame " << f;  // float32 in the file and in three.js
     std::printf("three.js GLTFLoader, walk frame %d: largest vertex difference %.2e m\n", f, worst);
