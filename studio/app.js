@@ -56,9 +56,10 @@ async function upload(file) {
   say(`uploading ${file.name} (${mb(file.size)})…`);
   try {
     const j = await api("POST", "/api/avatars", file, { "X-Filename": encodeURIComponent(file.name) });
-    say(`${file.name}: uploaded; making the avatar`, "ok");
+    await refresh(); // a state that has it, before it is selected
     studio.selected = j.id;
-    await refresh();
+    draw();
+    say(`${file.name}: uploaded; making the avatar`, "ok");
   } catch (e) {
     say(`${file.name}: refused: ${e.message}`, "error");
   }
@@ -281,6 +282,8 @@ function draw() {
 // ---- state from the server -------------------------------------------------------------------
 
 function take(state) {
+  // The event stream and the polls may cross: an older state than the one shown is dropped.
+  if (studio.state && state.version < studio.state.version) return;
   studio.state = state;
   $("workspace").textContent = state.workspace;
   if (studio.selected && !state.avatars.some((a) => a.id === studio.selected)) studio.selected = null;

@@ -101,11 +101,10 @@ void run_studio(StudioArgs& a) {
   server.start();
   if (a.open) open_browser(url);
   while (!g_stop) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  const std::string running = [&] {
-    for (const auto& av : studio.state()["avatars"])
-      if (av["state"] == "running") return av["id"].get<std::string>();
-    return std::string();
-  }();
+  std::string running;
+  const nlohmann::json now = studio.state();
+  for (const auto& av : now["avatars"])
+    if (av["state"] == "running") running = av["id"];
   studio.shutdown();  // the running create is stopped and stays resumable
   server.stop();
   sigaction(SIGINT, &old_int, nullptr);

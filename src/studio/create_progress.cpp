@@ -123,14 +123,21 @@ double CreateProgress::percent() const {
 
 double CreateProgress::remaining(double elapsed) const {
   // Skipped stages took no time: leave them out of the rate.
-  double total = 0, done = 0;
-  for (const auto& s : stages_) {
+  double total = 0, done = 0, later = 0;
+  for (int k = 0; k < int(stages_.size()); ++k) {
+    const JobStage& s = stages_[size_t(k)];
     if (s.status == "skipped") continue;
     total += s.weight;
     done += s.weight * (s.status == "done" ? 1.0 : s.fraction);
+    if (k > current_ && current_ >= 0) later += s.weight;
   }
   if (total <= 0 || done / total < 0.05 || elapsed <= 0) return -1;
-  return elapsed * (total - done) / done;
+  const double rate = elapsed / done;  // seconds per unit of the usual weights
+  // The running stage's own estimate, where it printed one (its share of a run varies most:
+  // reconstruct's with --iters), then the later stages at the rate so far.
+  if (current_ >= 0 && stages_[size_t(current_)].eta_seconds >= 0)
+    return stages_[size_t(current_)].eta_seconds + rate * later;
+  return rate * (total - done);
 }
 
 nlohmann::json CreateProgress::to_json(double elapsed) const {

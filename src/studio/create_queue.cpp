@@ -23,6 +23,14 @@ bool up_to_date(const fs::path& out, const fs::path& in) {
   return !ec && to >= ti;
 }
 
+// The message without the avatar folder's path (the page shows "photo.png", not where the
+// workspace lies on the server's disk).
+std::string without_folder(std::string message, const fs::path& dir) {
+  const std::string prefix = dir.string() + "/";
+  for (size_t p; (p = message.find(prefix)) != std::string::npos;) message.erase(p, prefix.size());
+  return message;
+}
+
 }  // namespace
 
 CreateQueue::CreateQueue(Workspace& ws, JobSettings settings, std::function<void()> on_change)
@@ -217,10 +225,12 @@ void CreateQueue::run_job(const std::string& id) {
     if (status == 0) return true;
     progress_.finish(false);
     rec->state = "failed";
-    rec->error = !progress_.error().empty()
-                     ? progress_.error()
-                     : what + " exited with status " + std::to_string(status) +
-                           (progress_.last_line().empty() ? "" : ": " + progress_.last_line());
+    rec->error = without_folder(
+        !progress_.error().empty()
+            ? progress_.error()
+            : what + " exited with status " + std::to_string(status) +
+                  (progress_.last_line().empty() ? "" : ": " + progress_.last_line()),
+        dir);
     rec->error_stage = progress_.current_name();
     ws_.save(*rec);
     return false;
@@ -283,7 +293,7 @@ void CreateQueue::run_job(const std::string& id) {
       std::lock_guard<std::mutex> lock(m_);
       progress_.finish(false);
       rec->state = "failed";
-      rec->error = e.what();
+      rec->error = without_folder(e.what(), dir);
       rec->error_stage = "export";
       ws_.save(*rec);
       return;
