@@ -2,6 +2,7 @@
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -32,7 +33,12 @@ void address_of(const sockaddr_storage& a, std::string& ip, int& port) {
 }  // namespace
 
 SocketStream::SocketStream(int fd, int read_timeout_ms, int write_timeout_ms)
-    : fd_(fd), read_timeout_ms_(read_timeout_ms), write_timeout_ms_(write_timeout_ms) {}
+    : fd_(fd), read_timeout_ms_(read_timeout_ms), write_timeout_ms_(write_timeout_ms) {
+  // The library writes a reply's head and body separately: without this, Nagle's algorithm holds
+  // the body back until the client's delayed ACK of the head (40 ms a reply on keep-alive).
+  const int one = 1;
+  ::setsockopt(fd_, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+}
 
 SocketStream::~SocketStream() {
   if (!finished_) finish(0, 0);

@@ -147,6 +147,12 @@ const char* reason(int status) {
 class WebServer::Impl : public httplib::Server {
  public:
   explicit Impl(WebServer& owner) : owner_(owner) {}
+  // The library listens with a backlog of 5 (compiled into it); a burst of new connections
+  // beyond that would wait for SYN retransmits (1 s). Linux takes a new backlog from a second
+  // listen() on the bound socket.
+  void widen_backlog(int n) {
+    if (svr_sock_ != INVALID_SOCKET) ::listen(svr_sock_, n);
+  }
 
  private:
   bool process_and_close_socket(socket_t sock) override {
@@ -246,6 +252,7 @@ WebServer::WebServer(const WebServerOptions& opt) : impl_(new Impl(*this)), opt_
     bound = s.bind_to_port(host_, opt.port);
     port_ = opt.port;
   }
+  if (bound) s.widen_backlog(128);
   if (!bound) {
     const std::string why = errno != 0 ? std::string(": ") + std::strerror(errno) : "";
     throw Error("http server: cannot listen on " + host_ + ":" + std::to_string(opt.port) + why +
