@@ -148,12 +148,13 @@ try {
     await page.setInputFiles("#file", args.photo);
     await waitMessage(() => /uploaded/.test(window.studio.message), "uploaded");
     const progress = [];
-    // A screenshot while it runs, once reconstruct (the long stage) is under way.
+    // A screenshot while it runs, once reconstruct (the long stage) is a fifth done.
     const end = Date.now() + args.timeoutMs;
     for (;;) {
       const a = await selected();
       if (a && a.progress) progress.push({ t: (Date.now() - t0) / 1000, state: a.state, stage: a.progress.stage, percent: a.progress.percent, remaining: a.progress.remaining });
-      if (a && (a.state === "done" || (a.state === "running" && ["reconstruct", "videos", "export"].includes(a.progress?.stage)))) break;
+      const rec = a?.progress?.stages?.find((st) => st.name === "reconstruct");
+      if (a && (a.state === "done" || (a.state === "running" && (["videos", "export"].includes(a.progress.stage) || rec?.percent >= 20)))) break;
       if (a && a.state === "failed") throw new Error(`the avatar failed: ${a.error}`);
       if (Date.now() > end) throw new Error("timed out waiting for reconstruct");
       await page.waitForTimeout(100);
