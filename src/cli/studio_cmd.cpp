@@ -26,7 +26,6 @@ void on_signal(int) {
 
 struct StudioArgs {
   ks::StudioOptions opt;
-  int port = 8642;
   std::string listen, create_options;
   bool open = false;
 };
@@ -66,7 +65,7 @@ void run_studio(StudioArgs& a) {
   for (std::string w; words >> w;) a.opt.create_args.push_back(w);
   ks::Studio studio(a.opt);
   ks::WebServerOptions so;
-  so.port = a.port;
+  so.port = a.opt.port;
   if (!a.listen.empty()) {
     so.host = a.listen;
     so.token = random_token();
@@ -123,7 +122,7 @@ ks::cli::CommandGroup group(76, [](CLI::App& app) {
       "studio",
       "A local web app: drop a photo, watch create make the avatar, play it, download it. "
       "Serves on 127.0.0.1 until Ctrl-C (docs/studio.md)");
-  sub->add_option("--port", a->port, "TCP port (0: any free port)")->capture_default_str();
+  sub->add_option("--port", a->opt.port, "TCP port (0: any free port)")->capture_default_str();
   sub->add_option("--dir", a->opt.workspace,
                   "Workspace folder: the photos, each avatar's create folder and exports")
       ->capture_default_str();

@@ -18,6 +18,7 @@
 namespace ks {
 
 struct StudioOptions {
+  int port = 8642;                             // the studio's HTTP port (`kinesplat studio`)
   std::string workspace = "kinesplat-studio";  // the folder everything goes into
   // The kinesplat program run for create and export; empty: this program (/proc/self/exe).
   std::string program;
