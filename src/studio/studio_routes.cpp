@@ -200,16 +200,8 @@ void add_studio_routes(WebServer& server, Studio& studio) {
   server.get("/avatars/([^/]+)/web/.*", [&studio](const Req& req, Res& res) {
     std::string id;
     if (!avatar_id(req, res, studio, id)) return;
-    const std::string prefix = "/avatars/" + id + "/web";
-    const fs::path root = studio.workspace().avatar_dir(id) / "web";
-    const bool literal = req.target.compare(0, prefix.size(), prefix) == 0;
-    const std::optional<fs::path> p =
-        literal ? resolve_request_path(root, req.target.substr(prefix.size())) : std::nullopt;
-    if (!p) {
-      WebServer::reply_error(res, 403, "refused: " + req.target);
-      return;
-    }
-    reply_with_file(root, *p, res);
+    reply_under_prefix("/avatars/" + id + "/web", studio.workspace().avatar_dir(id) / "web", req,
+                       res);
   });
 }
 

@@ -137,6 +137,19 @@ void reply_with_file(const fs::path& root, const fs::path& path, WebServer::Resp
                            });
 }
 
+void reply_under_prefix(const std::string& prefix, const fs::path& root,
+                        const WebServer::Request& req, WebServer::Response& res) {
+  // The prefix as sent, not percent-encoded differently (the route matched the decoded path).
+  const bool literal = req.target.compare(0, prefix.size(), prefix) == 0;
+  const std::optional<fs::path> p =
+      literal ? resolve_request_path(root, req.target.substr(prefix.size())) : std::nullopt;
+  if (!p) {
+    WebServer::reply_error(res, 403, "refused: " + req.target);
+    return;
+  }
+  reply_with_file(root, *p, res);
+}
+
 void serve_folder(WebServer& server, const std::string& prefix, const fs::path& root) {
   const std::string quoted =
       std::regex_replace(prefix, std::regex(R"([.^$|()\[\]{}*+?\\])"), R"(\$&)");
@@ -144,18 +157,10 @@ void serve_folder(WebServer& server, const std::string& prefix, const fs::path& 
     server.get(quoted, [prefix](const WebServer::Request&, WebServer::Response& res) {
       res.set_redirect(prefix + "/", 301);
     });
-  server.get(
-      quoted + "/.*", [root, prefix](const WebServer::Request& req, WebServer::Response& res) {
-        // The prefix as sent, not percent-encoded differently (the route matched the decoded path).
-        const bool literal = req.target.compare(0, prefix.size(), prefix) == 0;
-        const std::optional<fs::path> p =
-            literal ? resolve_request_path(root, req.target.substr(prefix.size())) : std::nullopt;
-        if (!p) {
-          WebServer::reply_error(res, 403, "refused: " + req.target);
-          return;
-        }
-        reply_with_file(root, *p, res);
-      });
+  server.get(quoted + "/.*",
+             [root, prefix](const WebServer::Request& req, WebServer::Response& res) {
+               reply_under_prefix(prefix, root, req, res);
+             });
 }
 
 }  // namespace ks

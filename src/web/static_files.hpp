@@ -36,6 +36,10 @@ void reply_with_file(const std::filesystem::path& root, const std::filesystem::p
 
 // GET / HEAD of `prefix` + path serves `root` + path: `prefix` is "" (the whole server) or
 // "/a/b" (no trailing slash); "/a/b" alone redirects to "/a/b/". Refused targets are 403.
+// Answers a GET for `prefix` + PATH with the file PATH under `root`: the prefix must be as sent
+// (not percent-encoded differently), the path go through resolve_request_path; else 403.
+void reply_under_prefix(const std::string& prefix, const std::filesystem::path& root,
+                        const WebServer::Request& req, WebServer::Response& res);
 void serve_folder(WebServer& server, const std::string& prefix, const std::filesystem::path& root);
 
 }  // namespace ks

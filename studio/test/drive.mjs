@@ -9,6 +9,7 @@
 //                 upload left running (the test then stops the studio).
 // --phase resume: the interrupted avatar shown with its resume button, resumed to the end.
 // Writes DIR/result.json (what was seen, with times) and DIR/NN-name.png screenshots.
+import { chromiumLaunchOptions } from "../../viewer/test/chromium_options.mjs";
 import { mkdirSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 
@@ -41,20 +42,7 @@ const t0 = Date.now();
 const result = { phase: args.phase, steps: [], logs: [] };
 const step = (name, data = {}) => result.steps.push({ name, t: (Date.now() - t0) / 1000, ...data });
 
-const browser = await chromium.launch({
-  executablePath: process.env.KS_CHROMIUM || "/usr/bin/chromium",
-  headless: true,
-  args: [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--enable-unsafe-swiftshader",
-    "--use-angle=swiftshader",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-  ],
-});
+const browser = await chromium.launch(chromiumLaunchOptions());
 const context = await browser.newContext({ viewport: { width: 1180, height: 860 }, deviceScaleFactor: 1, acceptDownloads: true });
 const page = await context.newPage();
 page.on("console", (m) => result.logs.push(`[${m.type()}] ${m.text()}`));

@@ -23,6 +23,7 @@
 
 #include "avatar/avatar.hpp"
 #include "avatar/pose.hpp"
+#include "cli_process.hpp"
 #include "core/camera.hpp"
 #include "core/fileio.hpp"
 #include "evaluate/metrics.hpp"
@@ -44,79 +45,13 @@ const char* kCreateOptions =
     "--iters 20 --frames 8 --motions none --size 128x192 --subdivide 0 --density off";
 
 // The studio as a child process, its output on a pipe.
-struct StudioProcess {
-  pid_t pid = -1;
-  int out = -1;
-  std::string text;
-
-  bool start(const std::vector<std::string>& args) {
-    int fds[2];
-    if (::pipe(fds) != 0) return false;
-    pid = ::fork();
-    if (pid == 0) {
-      ::dup2(fds[1], 1);
-      ::dup2(fds[1], 2);
-      ::close(fds[0]);
-      ::close(fds[1]);
-      std::vector<std::string> copy = args;
-      std::string exe = KS_CLI_PATH;
-      std::vector<char*> argv = {exe.data()};
-      for (auto& s : copy) argv.push_back(s.data());
-      argv.push_back(nullptr);
-      ::execv(exe.c_str(), argv.data());
-      ::_exit(127);
-    }
-    ::close(fds[1]);
-    out = fds[0];
-    return pid > 0;
-  }
-  bool wait_for(const std::string& what, double seconds) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-    while (text.find(what) == std::string::npos) {
-      const int ms = int(std::chrono::duration_cast<std::chrono::milliseconds>(
-                             end - std::chrono::steady_clock::now())
-                             .count());
-      if (ms <= 0) return false;
-      pollfd p{out, POLLIN, 0};
-      if (::poll(&p, 1, ms) <= 0) continue;
-      char buf[1024];
-      const ssize_t n = ::read(out, buf, sizeof buf);
-      if (n <= 0) return text.find(what) != std::string::npos;
-      text.append(buf, size_t(n));
-    }
-    return true;
-  }
+struct StudioProcess : test::CliProcess {
   std::string url() const {
     const std::string key = "serving at ";
     const size_t p = text.find(key);
     if (p == std::string::npos) return "";
     const size_t s = p + key.size();
     return text.substr(s, text.find(' ', s) - s);
-  }
-  // Sends `sig` and returns the exit status (-1: killed after 20 s, or ended by a signal).
-  int stop(int sig) {
-    if (pid <= 0) return -1;
-    ::kill(pid, sig);
-    int status = 0;
-    for (int i = 0; i < 200; ++i) {
-      if (::waitpid(pid, &status, WNOHANG) == pid) {
-        pid = -1;
-        wait_for("\n__never__", 0.3);  // the last lines
-        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    ::kill(pid, SIGKILL);
-    ::waitpid(pid, &status, 0);
-    pid = -1;
-    return -1;
-  }
-  ~StudioProcess() {
-    if (pid > 0) {
-      ::kill(pid, SIGKILL);
-      ::waitpid(pid, nullptr, 0);
-    }
-    if (out >= 0) ::close(out);
   }
 };
 

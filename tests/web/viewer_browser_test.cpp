@@ -20,6 +20,7 @@
 #include "avatar/from_body.hpp"
 #include "avatar/pose.hpp"
 #include "body/body_model.hpp"
+#include "cli_process.hpp"
 #include "core/camera.hpp"
 #include "core/fileio.hpp"
 #include "evaluate/metrics.hpp"
@@ -97,77 +98,8 @@ Avatar small_avatar() {
   return a;
 }
 
-// `kinesplat view` as a child process, its standard output on a pipe.
-struct ViewProcess {
-  pid_t pid = -1;
-  int out = -1;
-  std::string text;
-
-  bool start(const std::vector<std::string>& args) {
-    int fds[2];
-    if (::pipe(fds) != 0) return false;
-    pid = ::fork();
-    if (pid == 0) {
-      ::dup2(fds[1], 1);
-      ::dup2(fds[1], 2);
-      ::close(fds[0]);
-      ::close(fds[1]);
-      std::vector<char*> argv;
-      std::string exe = KS_CLI_PATH;
-      argv.push_back(exe.data());
-      std::vector<std::string> copy = args;
-      for (auto& s : copy) argv.push_back(s.data());
-      argv.push_back(nullptr);
-      ::execv(exe.c_str(), argv.data());
-      ::_exit(127);
-    }
-    ::close(fds[1]);
-    out = fds[0];
-    return pid > 0;
-  }
-  // Reads output until it contains `what` or `seconds` pass.
-  bool wait_for(const std::string& what, double seconds) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-    while (text.find(what) == std::string::npos) {
-      const int ms = int(std::chrono::duration_cast<std::chrono::milliseconds>(
-                             end - std::chrono::steady_clock::now())
-                             .count());
-      if (ms <= 0) return false;
-      pollfd p{out, POLLIN, 0};
-      if (::poll(&p, 1, ms) <= 0) continue;
-      char buf[1024];
-      const ssize_t n = ::read(out, buf, sizeof buf);
-      if (n <= 0) return text.find(what) != std::string::npos;
-      text.append(buf, size_t(n));
-    }
-    return true;
-  }
-  // Sends SIGINT (Ctrl-C) and returns the exit status (-1: killed after 20 s, or by a signal).
-  int interrupt() {
-    if (pid <= 0) return -1;
-    ::kill(pid, SIGINT);
-    int status = 0;
-    for (int i = 0; i < 200; ++i) {
-      if (::waitpid(pid, &status, WNOHANG) == pid) {
-        pid = -1;
-        wait_for("\n__never__", 0.5);  // collect the last lines
-        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    ::kill(pid, SIGKILL);
-    ::waitpid(pid, &status, 0);
-    pid = -1;
-    return -1;
-  }
-  ~ViewProcess() {
-    if (pid > 0) {
-      ::kill(pid, SIGKILL);
-      ::waitpid(pid, nullptr, 0);
-    }
-    if (out >= 0) ::close(out);
-  }
-};
+// `kinesplat view` as a child process, its output on a pipe.
+using ViewProcess = test::CliProcess;
 
 std::string quote(const std::string& s) {
   return "'" + s + "'";
@@ -273,7 +205,7 @@ TEST(ViewerBrowser, PlaysTheAvatarAndMatchesTheCppRender) {
     play2 = read_image(shots + "/play2.png", 3);
     moved = changed_share(play1, play2, 8.f / 255.f);
   }
-  const int view_status = view.interrupt();
+  const int view_status = view.stop(SIGINT);
   ASSERT_EQ(rc, 0) << read_file_text(dir / "capture.log");
   EXPECT_EQ(view_status, 0) << view.text;
   EXPECT_NE(view.text.find("view: stopped"), std::string::npos) << view.text;

@@ -14,6 +14,7 @@
 // --no-ui:          hides the page's controls in the playing shots too.
 // Writes DIR/result.json (frames shown, frame rate, splat count, WebGL renderer) and prints it.
 import { chromium } from "playwright-core";
+import { chromiumLaunchOptions } from "./chromium_options.mjs";
 import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 
@@ -46,21 +47,7 @@ function parseArgs(argv) {
 const args = parseArgs(process.argv);
 mkdirSync(args.out, { recursive: true });
 
-const browser = await chromium.launch({
-  executablePath: process.env.KS_CHROMIUM || "/usr/bin/chromium",
-  headless: true,
-  // playwright-core starts the browser with a fresh temporary profile (--user-data-dir).
-  args: [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--enable-unsafe-swiftshader",
-    "--use-angle=swiftshader",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-  ],
-});
+const browser = await chromium.launch(chromiumLaunchOptions());
 
 const logs = [];
 const result = { url: args.url };

@@ -22,6 +22,7 @@
 // Prints one JSON line (renderer, counts, file paths, timings) and writes it to DIR/result.json;
 // exits 1 with a message on stderr (and "error" in the JSON) on any failure.
 import { chromium } from "playwright-core";
+import { chromiumLaunchOptions } from "../../../viewer/test/chromium_options.mjs";
 import { createServer } from "node:http";
 import { mkdirSync, readFileSync, statSync, writeFileSync, createReadStream } from "node:fs";
 import { dirname, extname, join, normalize, resolve, sep } from "node:path";
@@ -164,21 +165,7 @@ try {
   const base = `http://127.0.0.1:${server.address().port}`;
 
   const tLaunch = performance.now();
-  browser = await chromium.launch({
-    executablePath: process.env.KS_CHROMIUM || "/usr/bin/chromium",
-    headless: true,
-    // playwright-core starts the browser with a fresh temporary profile (--user-data-dir).
-    args: [
-      "--no-sandbox",
-      "--disable-gpu",
-      "--enable-unsafe-swiftshader",
-      "--use-angle=swiftshader",
-      "--disable-background-networking",
-      "--disable-component-update",
-      "--disable-sync",
-      "--no-first-run",
-    ],
-  });
+  browser = await chromium.launch(chromiumLaunchOptions());
   result.chromium = browser.version();
   result.timings = { launch_ms: performance.now() - tLaunch };
   const logs = [];
