@@ -18,6 +18,7 @@
 #include "fit/pose_prior.hpp"
 #include "fit/residuals.hpp"
 #include "fit/silhouette.hpp"
+#include "fit/terms.hpp"
 #include "meshrender/meshrender.hpp"
 
 namespace ks {
@@ -84,19 +85,6 @@ const std::vector<std::vector<int>> kDepthFlipLimbs = {
     {sj::kLeftShoulder}, {sj::kRightShoulder},          {sj::kLeftHip},
     {sj::kRightHip},     {sj::kLeftHip, sj::kRightHip}, {sj::kLeftShoulder, sj::kRightShoulder}};
 
-double keypoint_group_weight(int k, const FitOptions& o) {
-  using namespace body25;
-  if (k == kNose || (k >= kREye && k <= kLEar)) return o.w_face;
-  if (k >= kLBigToe) return o.w_feet;
-  return 1.0;
-}
-
-bool is_torso_keypoint(int k) {
-  using namespace body25;
-  return k == kNeck || k == kLShoulder || k == kRShoulder || k == kMidHip || k == kLHip ||
-         k == kRHip;
-}
-
 // Correspondences of the cover term: each mask-outline sample with its nearest body-outline
 // vertex (of the fit's vertex subset) under the current parameters.
 struct Cover {
@@ -104,8 +92,7 @@ struct Cover {
   Eigen::Vector2d q;
 };
 
-// A stage's residual blocks by term name, for the per-term costs.
-using TermBlocks = std::map<std::string, std::vector<ceres::ResidualBlockId>>;
+using fit::TermBlocks;
 
 class Fitter {
  public:
@@ -121,7 +108,7 @@ class Fitter {
     priors_ = fit::make_joint_priors(d_, o.stance_arm_down_degrees, o.w_limits);
     has_mask_ = !in.mask.empty() && o.use_silhouette;
     if (has_mask_) df_ = fit::outside_distance(in.mask);
-    unit_ = person_height_px() / 100.0;
+    unit_ = fit::person_height_px(in) / 100.0;
   }
 
   FitResult run() {
@@ -160,29 +147,6 @@ class Fitter {
   bool has(int k) const { return in_.keypoints[size_t(k)].z() > 0; }
   Eigen::Vector2d kp(int k) const { return in_.keypoints[size_t(k)].head<2>(); }
   bool silhouette(const FitStage& s) const { return s.silhouette && has_mask_; }
-
-  // The person's height in pixels: the mask's rows, else the keypoints' extent (and 15 % more for
-  // what lies above the eyes and below the ankles).
-  double person_height_px() const {
-    double ymin = 1e18, ymax = -1e18;
-    if (!in_.mask.empty()) {
-      for (int y = 0; y < in_.height; ++y)
-        for (int x = 0; x < in_.width; ++x)
-          if (in_.mask.at(x, y, 0) >= 0.5f) {
-            ymin = std::min(ymin, double(y));
-            ymax = std::max(ymax, double(y + 1));
-          }
-    }
-    if (!(ymax > ymin)) {
-      for (const auto& k : in_.keypoints)
-        if (k.z() > 0) {
-          ymin = std::min(ymin, k.y());
-          ymax = std::max(ymax, k.y());
-        }
-      ymax = ymin + 1.15 * (ymax - ymin);
-    }
-    return std::max(10.0, ymax - ymin);
-  }
 
   // Runs `stages` in order on x; `cost` is the cost before them (what a depth-flips stage must
   // beat). Returns the last stage's final cost; `costs`: the last solve's per-term costs.
@@ -335,43 +299,8 @@ class Fitter {
   // Stage s's terms at x into `problem`, each term's blocks under its name in `groups`.
   void add_terms(ceres::Problem& problem, const fit::Evaluator& ev, Eigen::VectorXd& x,
                  const FitStage& s, TermBlocks& groups) const {
-    using namespace body25;
-    const Layout& L = d_.layout;
-    const int P = L.size;
-    for (int k = 0; k < kBody25Count; ++k) {
-      if (!has(k) || (s.torso_only && !is_torso_keypoint(k))) continue;
-      const double w = o_.w_keypoints * keypoint_group_weight(k, o_) * in_.keypoints[size_t(k)].z();
-      auto* loss = new ceres::ScaledLoss(new ceres::CauchyLoss(o_.keypoint_robust), w,
-                                         ceres::TAKE_OWNERSHIP);
-      groups["keypoints"].push_back(problem.AddResidualBlock(
-          new fit::KeypointResidual(ev, pr_, k, kp(k), unit_, P), loss, x.data()));
-    }
-    if (s.free_pose) {
-      for (int j = 1; j <= L.pose_joints; ++j) {
-        fit::JointPrior jp = priors_[size_t(j - 1)];
-        jp.w_stance = s.prior_scale * o_.w_pose_prior;
-        groups["pose_prior"].push_back(problem.AddResidualBlock(
-            new fit::PoseResidual(jp, L.pose + 3 * (j - 1), P), nullptr, x.data()));
-        groups["joint_limits"].push_back(problem.AddResidualBlock(
-            new fit::LimitResidual(jp, L.pose + 3 * (j - 1), P), nullptr, x.data()));
-      }
-      for (int j : {sj::kLeftElbow, sj::kRightElbow, sj::kLeftWrist, sj::kRightWrist})
-        groups["arms_torso"].push_back(problem.AddResidualBlock(
-            new fit::ArmTorsoResidual(ev, j, 0.10, o_.w_arm_torso, P), nullptr, x.data()));
-    }
-    if (o_.w_upright > 0 && !s.torso_only)
-      groups["upright"].push_back(problem.AddResidualBlock(
-          new fit::UprightResidual(L.orient, o_.upright_sigma_degrees * kDeg, o_.w_upright, P),
-          nullptr, x.data()));
-    if (o_.w_ground > 0 && s.free_pose)
-      groups["ground"].push_back(
-          problem.AddResidualBlock(new fit::GroundResidual(ev, sj::kLeftAnkle, sj::kRightAnkle, P),
-                                   new ceres::ScaledLoss(new ceres::CauchyLoss(o_.ground_robust_cm),
-                                                         o_.w_ground, ceres::TAKE_OWNERSHIP),
-                                   x.data()));
-    if (s.free_betas && L.num_betas > 0)
-      groups["shape_prior"].push_back(problem.AddResidualBlock(
-          new fit::ShapeResidual(L.betas, L.num_betas, o_.w_shape, P), nullptr, x.data()));
+    const fit::FrameTerms f{d_, in_, ev, pr_, priors_, unit_};
+    fit::add_frame_terms(problem, f, o_, s, x.data(), groups);
     if (silhouette(s)) add_silhouette_terms(problem, ev, x, groups);
   }
 
