@@ -17,13 +17,14 @@ ks::cli::CommandGroup group(25, [](CLI::App& app) {
     std::vector<std::string> inputs;
     std::string out;
     std::string keypoints = ks::to_string(o.fit.keypoints);
-    bool quiet = false, no_overlay = false;
+    bool quiet = false, no_overlay = false, no_temporal = false;
   };
   auto a = std::make_shared<Args>();
   auto* sub = app.add_subcommand(
       "track",
       "Fit the body in every frame of a video, a folder of frames or several photos: one camera "
-      "focal and one body shape for all (TRACK/track.json, TRACK/motion.npz, TRACK/frames/)");
+      "focal and one body shape for all, a video's frames tied in time (TRACK/track.json, "
+      "TRACK/motion.npz, TRACK/frames/)");
   sub->add_option("input", a->inputs,
                   "A video file (anything ffmpeg reads), a folder of PNG / JPEG frames (sorted by "
                   "name) or several image files")
@@ -57,11 +58,20 @@ ks::cli::CommandGroup group(25, [](CLI::App& app) {
       ->capture_default_str();
   sub->add_flag("--no-overlay", a->no_overlay,
                 "Without TRACK/overlay.mp4 and the frames' fit_overlay.png");
+  sub->add_flag("--no-temporal", a->no_temporal,
+                "Without pass 3 (a video's or folder's frames fitted at once with the temporal "
+                "terms); photo sets never have it");
+  sub->add_option("--sigma-accel", a->o.temporal.sigma_accel,
+                  "Pass 3's acceleration prior: deviation density of the joints' acceleration, "
+                  "m s^-1.5 (larger: less smoothing)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   sub->add_flag("--quiet,-q", a->quiet, "No progress lines");
   sub->callback([a] {
     ks::TrackOptions o = a->o;
     o.progress = !a->quiet;
     if (a->no_overlay) o.overlay = false;
+    if (a->no_temporal) o.temporal.enabled = false;
     o.fit.keypoints = ks::parse_keypoint_convention(a->keypoints);
     const ks::TrackResult r = ks::run_track(a->inputs, a->out, o);
     std::printf("track: %zu frames, focal %.1f px, %zu skipped; wrote %s/track.json, motion.npz\n",

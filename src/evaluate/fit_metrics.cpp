@@ -34,7 +34,9 @@ nlohmann::json FitMetrics::to_json() const {
           {"mpjpe_mm", mpjpe_mm},
           {"pa_mpjpe_mm", pa_mpjpe_mm},
           {"silhouette_iou", silhouette_iou},
-          {"pa_per_joint_mm", pa_per_joint_mm}};
+          {"pa_per_joint_mm", pa_per_joint_mm},
+          {"estimate_joints_mm", estimate_joints_mm},
+          {"truth_joints_mm", truth_joints_mm}};
 }
 
 FitMetrics evaluate_fit(const SubjectFit& est, const SubjectFit& truth) {
@@ -48,6 +50,12 @@ FitMetrics evaluate_fit(const SubjectFit& est, const SubjectFit& truth) {
   Eigen::VectorXd per;
   m.pa_mpjpe_mm = 1000.0 * pa_mpjpe(Je, Jt, &per);
   for (long i = 0; i < per.size(); ++i) m.pa_per_joint_mm.push_back(1000.0 * per(i));
+  for (int j = 0; j < m.joints; ++j) {
+    const Eigen::Vector3d e = 1000.0 * (Je.row(j) - Je.row(0)).transpose();
+    const Eigen::Vector3d t = 1000.0 * (Jt.row(j) - Jt.row(0)).transpose();
+    m.estimate_joints_mm.push_back({e.x(), e.y(), e.z()});
+    m.truth_joints_mm.push_back({t.x(), t.y(), t.z()});
+  }
   Camera ce = est.camera;
   if (ce.width != truth.camera.width || ce.height != truth.camera.height) {
     const double sx = double(truth.camera.width) / ce.width;

@@ -3,6 +3,7 @@
 // camera frame (MPJPE after aligning the pelvis, PA-MPJPE after the best similarity), and the
 // silhouettes of the two unclothed bodies, each through its own camera (the fitted camera is
 // scaled to the truth's image size when they differ).
+#include <array>
 #include <nlohmann/json.hpp>
 #include <vector>
 
@@ -16,6 +17,9 @@ struct FitMetrics {
   double pa_mpjpe_mm = 0;
   double silhouette_iou = 0;
   std::vector<double> pa_per_joint_mm;  // each joint after the Procrustes alignment
+  // The joints in each one's camera frame, the pelvis at the origin (what MPJPE compares), mm:
+  // a sequence's acceleration error is computed from them.
+  std::vector<std::array<double, 3>> estimate_joints_mm, truth_joints_mm;
   nlohmann::json to_json() const;
 };
 

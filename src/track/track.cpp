@@ -78,7 +78,7 @@ void write_overlays(const BodyModel& model, const StagedDir& staged, const Track
 }  // namespace
 
 TrackResult fit_track(const BodyModel& model, const std::vector<TrackFrameInput>& frames,
-                      const TrackOptions& o) {
+                      const TrackOptions& o, bool sequence) {
   const auto t0 = std::chrono::steady_clock::now();
   TrackResult r;
   r.body_model = o.body;
@@ -142,24 +142,50 @@ TrackResult fit_track(const BodyModel& model, const std::vector<TrackFrameInput>
     for (FitStage& s : *stages) s.free_betas = false;
   for (size_t i = 0; i < r.frames.size(); ++i) {
     TrackFrame& tf = r.frames[i];
-    tf.fit = fit_body(model, inputs[i], pass2);
-    tf.fit.params.betas = r.betas;
+    tf.shared = fit_body(model, inputs[i], pass2);
+    tf.shared.params.betas = r.betas;
+    tf.fit = tf.shared;
     tf.subject = kept[i].subject_dir;
     if (o.progress)
       std::fprintf(
           stderr, "track: fit pass 2 (shared shape): frame %zu/%zu (%s) cost %.4g, %.1f s\n", i + 1,
-          r.frames.size(), tf.source.c_str(), tf.fit.costs["total"], tf.fit.seconds);
+          r.frames.size(), tf.source.c_str(), tf.shared.costs["total"], tf.shared.seconds);
+  }
+
+  // Pass 3 on a sequence: all frames at once with the temporal terms.
+  r.sequence = sequence;
+  if (sequence && o.temporal.enabled && r.frames.size() >= 3) {
+    std::vector<double> times;
+    std::vector<FitResult> fits;
+    for (const TrackFrame& f : r.frames) {
+      times.push_back(f.time_s);
+      fits.push_back(f.shared);
+    }
+    TemporalOptions to = o.temporal;
+    to.progress = o.progress;
+    if (o.progress)
+      std::fprintf(stderr, "track: fit pass 3 (temporal): %zu frames\n", r.frames.size());
+    r.temporal = solve_temporal(model, inputs, times, r.betas, fits, pass2, to);
+    for (size_t i = 0; i < r.frames.size(); ++i) r.frames[i].fit = fits[i];
+    for (int i : r.temporal.swapped) r.frames[size_t(i)].swapped = true;
+    for (int i : r.temporal.restarted) r.frames[size_t(i)].restarted = true;
+    if (o.progress)
+      std::fprintf(stderr,
+                   "track: fit pass 3: cost %.4g -> %.4g, %zu frames' labels exchanged, %zu "
+                   "restarted, %.1f s\n",
+                   r.temporal.cost_before, r.temporal.cost_after, r.temporal.swapped.size(),
+                   r.temporal.restarted.size(), r.temporal.seconds);
   }
   r.fit_seconds = seconds_since(t0);
   return r;
 }
 
 TrackResult track_subjects(const std::vector<TrackFrameInput>& frames, const std::string& out_dir,
-                           const TrackOptions& o) {
+                           const TrackOptions& o, bool sequence) {
   check_out_dir(out_dir);
   if (frames.empty()) throw Error("track: no frames given");
   const BodyModel model = load_body_model(o.body);
-  TrackResult r = fit_track(model, frames, o);
+  TrackResult r = fit_track(model, frames, o, sequence);
   const double dt = frames.back().time_s - frames.front().time_s;
   const int di = frames.back().index - frames.front().index;
   r.input_fps = di > 0 && dt > 0 ? di / dt : o.input.image_fps;
@@ -226,7 +252,7 @@ TrackResult run_track(const std::vector<std::string>& inputs, const std::string&
   std::error_code ec;
   fs::remove_all(decoded, ec);
 
-  TrackResult r = fit_track(model, subjects, o);
+  TrackResult r = fit_track(model, subjects, o, in.sequence);
   r.skipped.insert(r.skipped.begin(), skipped.begin(), skipped.end());
   r.perceive_seconds = perceive_s;
   r.video = in.video;

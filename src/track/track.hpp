@@ -6,7 +6,8 @@
 //      mask.png, keypoints.json, perceive.json); a frame without a person is skipped;
 //   3. fit pass 1: each frame on its own (the single-photo fit's schedule); the shared shape = the
 //      per-coefficient median of the frames' betas; pass 2: each frame again with that shape
-//      fixed (FitOptions::initial_betas, free_betas off in every stage);
+//      fixed (FitOptions::initial_betas, free_betas off in every stage); pass 3 on a sequence:
+//      all frames at once with the temporal terms (track/temporal.hpp);
 //   4. TRACK/track.json and TRACK/motion.npz (track_file.hpp); TRACK/overlay.mp4.
 // The output folder appears atomically: on any error nothing is left.
 #include <Eigen/Core>
@@ -16,6 +17,7 @@
 #include "body/body_model.hpp"
 #include "fit/fit.hpp"
 #include "perceive/perceive.hpp"
+#include "track/temporal.hpp"
 #include "track/track_input.hpp"
 
 namespace ks {
@@ -25,7 +27,10 @@ struct TrackOptions {
   PerceiveOptions perceive;
   std::string body = "default";  // 'default' or an SMPL-family .npz
   FitOptions fit;                // focal / fov, keypoint convention; pass 1's schedule
-  bool progress = true;          // a line per stage and frame on stderr
+  // Pass 3 on sequences (a video, a folder of frames; not a set of photos): all frames at once
+  // with the temporal terms (track/temporal.hpp).
+  TemporalOptions temporal;
+  bool progress = true;  // a line per stage and frame on stderr
   // run_track: each frame's fit drawn on it (fit/overlay.hpp) as TRACK/frames/NNNN/fit_overlay.png
   // and TRACK/overlay.mp4 (the video only where ffmpeg is found).
   bool overlay = true;
@@ -43,9 +48,12 @@ struct TrackFrame {
   int index = 0;
   double time_s = 0;
   std::string source;
-  std::string subject;                      // the subject folder, relative to TRACK
-  FitResult independent;                    // pass 1: the frame on its own
-  FitResult fit;                            // pass 2: with the shared shape
+  std::string subject;     // the subject folder, relative to TRACK
+  FitResult independent;   // pass 1: the frame on its own
+  FitResult shared;        // pass 2: with the shared shape
+  FitResult fit;           // the result: pass 3 (temporal) on a sequence, else pass 2
+  bool swapped = false;    // pass 3 exchanged the detector's left and right labels here
+  bool restarted = false;  // pass 3 restarted this frame from its neighbours
   std::vector<std::string> keypoints_used;  // BODY_25 names of the keypoints present
 };
 
@@ -57,20 +65,23 @@ struct TrackResult {
   double fps = 30;  // the kept frames' rate (the input's divided by the mean step between them)
   double input_fps = 30;
   bool video = false;
+  bool sequence = false;  // frames in time order (a video or a folder): pass 3 ran on them
+  TemporalReport temporal;
   std::vector<TrackFrame> frames;
   std::vector<std::string> skipped;  // "SOURCE (frame n): why"
   double perceive_seconds = 0, fit_seconds = 0;
 };
 
-// Steps 3 (both passes) on subject folders; `frames` in time order, all of one image size.
-// Frames whose fit fails (no torso) are skipped and listed. Throws ks::Error when none is left.
+// Step 3 on subject folders; `frames` in time order, all of one image size; `sequence`: they are
+// a video's or a folder's frames (pass 3 runs), else a set of photos. Frames whose fit fails (no
+// torso) are skipped and listed. Throws ks::Error when none is left.
 TrackResult fit_track(const BodyModel& model, const std::vector<TrackFrameInput>& frames,
-                      const TrackOptions& options = {});
+                      const TrackOptions& options = {}, bool sequence = true);
 
 // Steps 3-4 on subject folders the caller made (the tests give the synth's true keypoints and
 // masks): TRACK/track.json and TRACK/motion.npz, written atomically.
 TrackResult track_subjects(const std::vector<TrackFrameInput>& frames, const std::string& out_dir,
-                           const TrackOptions& options = {});
+                           const TrackOptions& options = {}, bool sequence = true);
 
 // The whole command: steps 1-4 into out_dir (atomically; a non-empty folder that is not an
 // earlier track output is refused). Throws ks::Error on bad input, and when no frame has a person

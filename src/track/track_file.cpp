@@ -39,6 +39,12 @@ nlohmann::json track_json(const TrackResult& t) {
     fj["costs"] = f.fit.costs;
     fj["facing_camera"] = f.fit.facing_camera;
     fj["keypoints_used"] = f.keypoints_used;
+    fj["swapped"] = f.swapped;
+    fj["restarted"] = f.restarted;
+    const auto cs = f.shared.costs.find("total");
+    fj["shared"] = {{"params", f.shared.params.to_json()},
+                    {"camera", f.shared.camera.to_json()},
+                    {"cost", cs == f.shared.costs.end() ? 0.0 : cs->second}};
     const auto ci = f.independent.costs.find("total");
     fj["independent"] = {{"betas", std::vector<double>(f.independent.params.betas.data(),
                                                        f.independent.params.betas.data() +
@@ -50,6 +56,12 @@ nlohmann::json track_json(const TrackResult& t) {
   }
   j["frames"] = frames;
   j["skipped"] = t.skipped;
+  j["sequence"] = t.sequence;
+  j["temporal"] = {
+      {"applied", t.temporal.applied},       {"cost_before", t.temporal.cost_before},
+      {"cost_after", t.temporal.cost_after}, {"temporal_cost", t.temporal.temporal_cost},
+      {"swapped", t.temporal.swapped},       {"restarted", t.temporal.restarted},
+      {"solves", t.temporal.solves},         {"seconds", t.temporal.seconds}};
   j["perceive_seconds"] = t.perceive_seconds;
   j["fit_seconds"] = t.fit_seconds;
   return j;

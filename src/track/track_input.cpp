@@ -112,8 +112,10 @@ TrackInput list_track_input(const std::vector<std::string>& inputs, const std::s
     std::sort(files.begin(), files.end());
     if (files.empty()) throw Error("track: the folder " + inputs[0] + " has no PNG or JPEG frames");
     t.fps = o.image_fps;
+    t.sequence = true;
   } else if (one && !is_image_name(inputs[0])) {
     t.video = true;
+    t.sequence = true;
     decode_video(inputs[0], decode_dir, o.every);  // ffmpeg keeps every K-th frame itself
     for (const auto& e : fs::directory_iterator(decode_dir))
       if (e.path().extension() == ".png") files.push_back(e.path().string());

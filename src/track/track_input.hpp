@@ -21,8 +21,9 @@ struct InputFrame {
 
 struct TrackInput {
   bool video = false;
-  double fps = 30.0;               // the input's frame rate (the video's, or image_fps)
-  int total = 0;                   // frames in the input
+  bool sequence = false;  // a video or a folder: frames in time order (not a set of photos)
+  double fps = 30.0;      // the input's frame rate (the video's, or image_fps)
+  int total = 0;          // frames in the input
   std::vector<InputFrame> frames;  // the kept ones, in order
 };
 

@@ -91,7 +91,7 @@ struct SynthTrack {
       in.subject_dir = dir.string();
       in.source = fr["image"].get<std::string>();
       in.index = f;
-      in.time_s = f / 30.0;
+      in.time_s = f / builtin_motion(motion, n).fps;  // the synth keeps the motion's duration
       frames.push_back(in);
     }
   }
@@ -246,7 +246,7 @@ TEST(TrackFit, SharedShapeAndPosesOnACleanSynthWalk) {
   EXPECT_LT((c.t - r.frames[1].fit.camera.t).norm(), 1e-12);
   const Motion m = load_motion(out + "/motion.npz");
   EXPECT_EQ(m.frames.size(), 4u);
-  EXPECT_NEAR(m.fps, 30.0, 1e-9);
+  EXPECT_NEAR(m.fps, builtin_motion("walk", 4).fps, 1e-6);
 }
 
 TEST(TrackFit, BadInputsGiveErrorsAndLeaveNothing) {
