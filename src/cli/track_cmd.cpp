@@ -66,6 +66,9 @@ ks::cli::CommandGroup group(25, [](CLI::App& app) {
                   "m s^-1.5 (larger: less smoothing)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  sub->add_flag("--temporal-silhouette", a->o.temporal.silhouette,
+                "Pass 3 with the silhouette terms too: outlines closer to the masks, joints "
+                "further from the truth on the synth (docs/track.md), about 10x slower");
   sub->add_flag("--quiet,-q", a->quiet, "No progress lines");
   sub->callback([a] {
     ks::TrackOptions o = a->o;

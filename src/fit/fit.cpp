@@ -85,13 +85,6 @@ const std::vector<std::vector<int>> kDepthFlipLimbs = {
     {sj::kLeftShoulder}, {sj::kRightShoulder},          {sj::kLeftHip},
     {sj::kRightHip},     {sj::kLeftHip, sj::kRightHip}, {sj::kLeftShoulder, sj::kRightShoulder}};
 
-// Correspondences of the cover term: each mask-outline sample with its nearest body-outline
-// vertex (of the fit's vertex subset) under the current parameters.
-struct Cover {
-  int vertex;
-  Eigen::Vector2d q;
-};
-
 using fit::TermBlocks;
 
 class Fitter {
@@ -256,44 +249,11 @@ class Fitter {
     x.segment<3>(L.pose + 3 * (j - 1)) = aa.angle() * aa.axis();
   }
 
-  std::vector<Cover> correspondences(const Eigen::VectorXd& x) const {
+  std::vector<fit::Cover> correspondences(const Eigen::VectorXd& x) const {
     const Layout& L = d_.layout;
-    BodyParams p = fit::unpack_params(L, x);
-    const BodyState st = body_forward(model_, p);
-    const Camera cam = fit_camera(o_, in_.width, in_.height, fit::unpack_cam(L, x));
-    MeshRenderOptions ro;
-    ro.want_rgb = false;
-    ro.want_depth = true;
-    MeshRenderInput ri;
-    ri.vertices = &st.vertices;
-    ri.faces = &model_.faces;
-    const MeshRenderOutput r = render_mesh(cam, ri, ro);
-    // Vertices of the subset on the body's outline.
-    std::vector<int> ids(d_.vertex_ids.size());
-    for (size_t m = 0; m < ids.size(); ++m) ids[m] = d_.vertex_ids[m];
-    const auto rv = fit::rim_vertices(st.vertices, &ids, cam, r, 0.03);
-    std::vector<int> rim;
-    std::vector<Eigen::Vector2d> rim_uv;
-    for (const auto& v : rv) {
-      rim.push_back(v.slot);
-      rim_uv.push_back(v.uv);
-    }
-    std::vector<Cover> out;
-    if (rim.empty()) return out;
-    const auto samples = fit::outline_samples(in_.mask, 3.0, 600);
-    for (const auto& q : samples) {
-      int bi = -1;
-      double bd = 1e300;
-      for (size_t i = 0; i < rim.size(); ++i) {
-        const double dd = (rim_uv[i] - q).squaredNorm();
-        if (dd < bd) {
-          bd = dd;
-          bi = int(i);
-        }
-      }
-      out.push_back({rim[size_t(bi)], q});
-    }
-    return out;
+    return fit::cover_correspondences(model_, d_, fit::unpack_params(L, x),
+                                      fit_camera(o_, in_.width, in_.height, fit::unpack_cam(L, x)),
+                                      in_.mask);
   }
 
   // Stage s's terms at x into `problem`, each term's blocks under its name in `groups`.
@@ -301,28 +261,7 @@ class Fitter {
                  const FitStage& s, TermBlocks& groups) const {
     const fit::FrameTerms f{d_, in_, ev, pr_, priors_, unit_};
     fit::add_frame_terms(problem, f, o_, s, x.data(), groups);
-    if (silhouette(s)) add_silhouette_terms(problem, ev, x, groups);
-  }
-
-  void add_silhouette_terms(ceres::Problem& problem, const fit::Evaluator& ev, Eigen::VectorXd& x,
-                            TermBlocks& groups) const {
-    const Layout& L = d_.layout;
-    const int P = L.size;
-    const int M = int(d_.vertex_ids.size());
-    const double w_in = o_.w_sil_inside * 100.0 / M;
-    for (int m = 0; m < M; ++m)
-      groups["silhouette_inside"].push_back(problem.AddResidualBlock(
-          new fit::InsideResidual(ev, pr_, df_, m, unit_, P),
-          new ceres::ScaledLoss(nullptr, w_in, ceres::TAKE_OWNERSHIP), x.data()));
-    if (covers_.empty()) return;
-    const double depth = x[L.cam + 2];
-    const double allowance = pr_.f * o_.clothing_allowance / std::max(0.1, depth);
-    const double w_c = o_.w_sil_cover * 100.0 / double(covers_.size());
-    for (const Cover& c : covers_)
-      groups["silhouette_cover"].push_back(problem.AddResidualBlock(
-          new fit::CoverResidual(ev, pr_, c.vertex, c.q, allowance, unit_, P),
-          new ceres::ScaledLoss(new ceres::CauchyLoss(o_.cover_robust), w_c, ceres::TAKE_OWNERSHIP),
-          x.data()));
+    if (silhouette(s)) fit::add_silhouette_terms(problem, f, df_, covers_, o_, x.data(), groups);
   }
 
   // One Levenberg-Marquardt solve of stage s; returns the final cost. `costs`: per-term costs.
@@ -386,7 +325,7 @@ class Fitter {
   bool has_mask_ = false;
   fit::DistanceField df_;
   double unit_ = 1;
-  std::vector<Cover> covers_;
+  std::vector<fit::Cover> covers_;
 };
 
 }  // namespace

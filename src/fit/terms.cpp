@@ -5,6 +5,7 @@
 
 #include "body/joints.hpp"
 #include "fit/residuals.hpp"
+#include "meshrender/meshrender.hpp"
 
 namespace ks::fit {
 
@@ -85,6 +86,65 @@ void add_frame_terms(ceres::Problem& problem, const FrameTerms& f, const FitOpti
   if (s.free_betas && L.num_betas > 0)
     groups["shape_prior"].push_back(problem.AddResidualBlock(
         new ShapeResidual(L.betas, L.num_betas, o.w_shape, P), nullptr, x));
+}
+
+std::vector<Cover> cover_correspondences(const BodyModel& model, const BodyData& d,
+                                         const BodyParams& p, const Camera& cam,
+                                         const Image& mask) {
+  const BodyState st = body_forward(model, p);
+  MeshRenderOptions ro;
+  ro.want_rgb = false;
+  ro.want_depth = true;
+  MeshRenderInput ri;
+  ri.vertices = &st.vertices;
+  ri.faces = &model.faces;
+  const MeshRenderOutput r = render_mesh(cam, ri, ro);
+  // Vertices of the subset on the body's outline.
+  const auto rv = rim_vertices(st.vertices, &d.vertex_ids, cam, r, 0.03);
+  std::vector<int> rim;
+  std::vector<Eigen::Vector2d> rim_uv;
+  for (const auto& v : rv) {
+    rim.push_back(v.slot);
+    rim_uv.push_back(v.uv);
+  }
+  std::vector<Cover> out;
+  if (rim.empty()) return out;
+  const auto samples = outline_samples(mask, 3.0, 600);
+  for (const auto& q : samples) {
+    int bi = -1;
+    double bd = 1e300;
+    for (size_t i = 0; i < rim.size(); ++i) {
+      const double dd = (rim_uv[i] - q).squaredNorm();
+      if (dd < bd) {
+        bd = dd;
+        bi = int(i);
+      }
+    }
+    out.push_back({rim[size_t(bi)], q});
+  }
+  return out;
+}
+
+void add_silhouette_terms(ceres::Problem& problem, const FrameTerms& f, const DistanceField& df,
+                          const std::vector<Cover>& covers, const FitOptions& o, double* x,
+                          TermBlocks& groups) {
+  const Layout& L = f.d.layout;
+  const int P = L.size;
+  const int M = int(f.d.vertex_ids.size());
+  const double w_in = o.w_sil_inside * 100.0 / M;
+  for (int m = 0; m < M; ++m)
+    groups["silhouette_inside"].push_back(
+        problem.AddResidualBlock(new InsideResidual(f.ev, f.pr, df, m, f.unit, P),
+                                 new ceres::ScaledLoss(nullptr, w_in, ceres::TAKE_OWNERSHIP), x));
+  if (covers.empty()) return;
+  const double depth = x[L.cam + 2];
+  const double allowance = f.pr.f * o.clothing_allowance / std::max(0.1, depth);
+  const double w_c = o.w_sil_cover * 100.0 / double(covers.size());
+  for (const Cover& c : covers)
+    groups["silhouette_cover"].push_back(problem.AddResidualBlock(
+        new CoverResidual(f.ev, f.pr, c.vertex, c.q, allowance, f.unit, P),
+        new ceres::ScaledLoss(new ceres::CauchyLoss(o.cover_robust), w_c, ceres::TAKE_OWNERSHIP),
+        x));
 }
 
 }  // namespace ks::fit

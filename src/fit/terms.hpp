@@ -1,8 +1,9 @@
 #pragma once
-// The fit's per-frame terms other than the silhouette, as one stage switches them on: keypoints,
-// the pose prior and joint limits, arms out of the torso, upright, ground, shape prior. The
-// single-photo fit (fit.cpp) adds them for its one frame; `track`'s temporal solve
-// (track/temporal.hpp) adds them for every frame of a sequence, beside its temporal terms.
+// The fit's per-frame terms as one stage switches them on: keypoints, the pose prior and joint
+// limits, arms out of the torso, upright, ground, shape prior; and the silhouette (inside and
+// cover) with its correspondences. The single-photo fit (fit.cpp) adds them for its one frame;
+// `track`'s temporal solve (track/temporal.hpp) adds them for every frame of a sequence, beside
+// its temporal terms.
 #include <ceres/ceres.h>
 
 #include <map>
@@ -12,6 +13,7 @@
 #include "fit/evaluator.hpp"
 #include "fit/fit.hpp"
 #include "fit/pose_prior.hpp"
+#include "fit/silhouette.hpp"
 
 namespace ks::fit {
 
@@ -43,5 +45,22 @@ struct FrameTerms {
 // under its name in `groups`.
 void add_frame_terms(ceres::Problem& problem, const FrameTerms& f, const FitOptions& o,
                      const FitStage& s, double* x, TermBlocks& groups);
+
+// Correspondences of the cover term: each mask-outline sample with its nearest body-outline
+// vertex (a slot of d's vertex subset), the body rendered with parameters p through `camera`.
+struct Cover {
+  int vertex;
+  Eigen::Vector2d q;
+};
+std::vector<Cover> cover_correspondences(const BodyModel& model, const BodyData& d,
+                                         const BodyParams& p, const Camera& camera,
+                                         const Image& mask);
+
+// The silhouette terms on x: every subset vertex outside the mask (`df`, its outside distance;
+// the frame's Evaluator must hold all the subset's vertices) and the mask's outline against its
+// `covers` beyond the clothing allowance.
+void add_silhouette_terms(ceres::Problem& problem, const FrameTerms& f, const DistanceField& df,
+                          const std::vector<Cover>& covers, const FitOptions& o, double* x,
+                          TermBlocks& groups);
 
 }  // namespace ks::fit

@@ -15,6 +15,7 @@
 #include "fit/evaluator.hpp"
 #include "fit/fit_body.hpp"
 #include "fit/pose_prior.hpp"
+#include "fit/silhouette.hpp"
 #include "fit/terms.hpp"
 #include "track/temporal_terms.hpp"
 
@@ -27,6 +28,7 @@ using fit::Layout;
 using Keypoints = std::array<Eigen::Vector3d, kBody25Count>;
 
 struct Sequence {
+  const BodyModel& model;
   const BodyData& d;
   const FitOptions& fo;
   const TemporalOptions& to;
@@ -35,6 +37,8 @@ struct Sequence {
   std::vector<double> unit;
   std::vector<fit::JointPrior> priors;
   int joints = 22;
+  std::vector<Camera> cameras;         // per frame (its translation from the parameters)
+  std::vector<fit::DistanceField> df;  // per frame the mask's outside distance; empty: none
 };
 
 struct Solved {
@@ -43,14 +47,16 @@ struct Solved {
 };
 
 // One solve of the whole sequence from xs (changed in place).
-Solved solve(const Sequence& s, const std::vector<FitInput>& in, std::vector<Eigen::VectorXd>& xs) {
+Solved solve(const Sequence& s, const std::vector<FitInput>& in, std::vector<Eigen::VectorXd>& xs,
+             const std::vector<std::vector<fit::Cover>>& covers) {
   const int n = int(xs.size());
   const Layout& L = s.d.layout;
   const int P = L.size;
   std::vector<std::unique_ptr<fit::Evaluator>> evs;
   std::vector<fit::Evaluator*> raw;
   for (int i = 0; i < n; ++i) {
-    evs.push_back(std::make_unique<fit::Evaluator>(s.d, xs[size_t(i)].data(), false));
+    const bool sil = !s.df[size_t(i)].d.empty();
+    evs.push_back(std::make_unique<fit::Evaluator>(s.d, xs[size_t(i)].data(), sil));
     raw.push_back(evs.back().get());
   }
   track::SequenceEvaluator seq(raw);
@@ -66,6 +72,9 @@ Solved solve(const Sequence& s, const std::vector<FitInput>& in, std::vector<Eig
     const fit::FrameTerms f{s.d,      in[size_t(i)],    *raw[size_t(i)], s.pr[size_t(i)],
                             s.priors, s.unit[size_t(i)]};
     fit::add_frame_terms(problem, f, s.fo, st, xs[size_t(i)].data(), groups[size_t(i)]);
+    if (!s.df[size_t(i)].d.empty())
+      fit::add_silhouette_terms(problem, f, s.df[size_t(i)], covers[size_t(i)], s.fo,
+                                xs[size_t(i)].data(), groups[size_t(i)]);
   }
   std::vector<ceres::ResidualBlockId> temporal;
   const auto& t = s.t;
@@ -133,6 +142,32 @@ Solved solve(const Sequence& s, const std::vector<FitInput>& in, std::vector<Eig
     std::fprintf(stderr,
                  "track: temporal solve: cost %.4g -> %.4g (temporal %.4g), %d iterations\n",
                  sum.initial_cost, sum.final_cost, out.temporal, int(sum.iterations.size()));
+  return out;
+}
+
+// `rounds` solves from xs, the silhouette's cover correspondences renewed before each (the
+// single-photo fit's schedule); the first solve's initial cost, the last one's result.
+Solved solve_rounds(const Sequence& s, const std::vector<FitInput>& in,
+                    std::vector<Eigen::VectorXd>& xs) {
+  const int n = int(xs.size());
+  const bool sil =
+      std::any_of(s.df.begin(), s.df.end(), [](const auto& d) { return !d.d.empty(); });
+  const int rounds = sil ? std::max(1, s.to.silhouette_rounds) : 1;
+  Solved out;
+  for (int r = 0; r < rounds; ++r) {
+    std::vector<std::vector<fit::Cover>> covers(static_cast<size_t>(n));
+#pragma omp parallel for schedule(dynamic)
+    for (int i = 0; i < n; ++i) {
+      if (s.df[size_t(i)].d.empty()) continue;
+      Camera cam = s.cameras[size_t(i)];
+      cam.t = fit::unpack_cam(s.d.layout, xs[size_t(i)]);
+      covers[size_t(i)] = fit::cover_correspondences(
+          s.model, s.d, fit::unpack_params(s.d.layout, xs[size_t(i)]), cam, in[size_t(i)].mask);
+    }
+    const double initial = out.initial;
+    out = solve(s, in, xs, covers);
+    if (r > 0) out.initial = initial;
+  }
   return out;
 }
 
@@ -218,14 +253,17 @@ TemporalReport solve_temporal(const BodyModel& model, std::vector<FitInput>& inp
   const auto t0 = std::chrono::steady_clock::now();
   const BodyData d = fit::make_body_data(model, fo.num_betas, fo.vertex_stride, fo.keypoints);
   const Layout& L = d.layout;
-  Sequence s{d,
+  Sequence s{model,
+             d,
              fo,
              to,
              times,
              {},
              {},
              fit::make_joint_priors(d, fo.stance_arm_down_degrees, fo.w_limits),
-             std::min(to.joints, int(d.parents.size()))};
+             std::min(to.joints, int(d.parents.size())),
+             {},
+             {}};
   std::vector<Eigen::VectorXd> xs;
   for (int i = 0; i < n; ++i) {
     const FitResult& f = fits[size_t(i)];
@@ -236,11 +274,14 @@ TemporalReport solve_temporal(const BodyModel& model, std::vector<FitInput>& inp
     pr.cam = L.cam;
     s.pr.push_back(pr);
     s.unit.push_back(fit::person_height_px(inputs[size_t(i)]) / 100.0);
+    s.cameras.push_back(f.camera);
+    const bool sil = to.silhouette && fo.use_silhouette && !inputs[size_t(i)].mask.empty();
+    s.df.push_back(sil ? fit::outside_distance(inputs[size_t(i)].mask) : fit::DistanceField{});
     BodyParams p = f.params;
     p.betas = betas;
     xs.push_back(fit::pack(L, p, f.camera.t));
   }
-  Solved best = solve(s, inputs, xs);
+  Solved best = solve_rounds(s, inputs, xs);
   rep.solves = 1;
   rep.cost_before = best.initial;
 
@@ -307,7 +348,7 @@ TemporalReport solve_temporal(const BodyModel& model, std::vector<FitInput>& inp
         std::any_of(restarted_at.begin(), restarted_at.end(),
                     [&](int v) { return v == round + 1; });
     if (!any) break;
-    Solved c = solve(s, cand_in, cand_x);
+    Solved c = solve_rounds(s, cand_in, cand_x);
     ++rep.solves;
     if (!(c.cost < best.cost)) {
       for (int& v : swapped_at) v = v == round + 1 ? 0 : v;

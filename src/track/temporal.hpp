@@ -1,8 +1,7 @@
 #pragma once
 // `track`'s temporal solve: every frame of a sequence (a video, a folder of frames) fitted at once,
 // the shared shape fixed, each frame with the single-photo fit's keypoint and prior terms
-// (fit/terms.hpp; not the silhouette: its inside term alone, without the cover term's
-// correspondences, pulled the limbs into the mask, MPJPE +21 mm on the tuning seed) and the
+// terms (fit/terms.hpp; the silhouette's only with `silhouette`) and the
 // temporal terms (track/temporal_terms.hpp) tying each frame's joints and BODY_25 points to its
 // neighbours', starting from the per-frame fits. Robust to the detector's failures:
 //  - dropouts and brief occlusions: a keypoint missing in a frame has no term there; the
@@ -34,6 +33,12 @@ struct TemporalOptions {
   double temporal_robust = 3.0;
   int joints =
       22;  // the body joints followed (SMPL's 22 without the hands), and the BODY_25 points
+  // The single-photo fit's silhouette terms (inside and cover) where a frame has a mask, the
+  // cover term's correspondences renewed before each of `silhouette_rounds` solves. Off: on the
+  // tuning seed (synth 3, walk) it kept the silhouette IoU (0.888 against 0.854 without, 0.893
+  // pass 2) but cost 18 mm MPJPE and 26 mm PA-MPJPE against pass 3 without it, and 10x the time.
+  bool silhouette = false;
+  int silhouette_rounds = 2;
   bool fix_swaps = true;
   // A swap is taken where the exchanged labels' robust cost against the neighbours' prediction is
   // below this fraction of the labels as given.

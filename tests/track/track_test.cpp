@@ -249,6 +249,29 @@ TEST(TrackFit, SharedShapeAndPosesOnACleanSynthWalk) {
   EXPECT_NEAR(m.fps, builtin_motion("walk", 4).fps, 1e-6);
 }
 
+// Pass 3 with the silhouette terms (--temporal-silhouette) on the same clean walk: the masks are
+// in every frame's costs, the poses stay near the truth; as a set of photos, no pass 3.
+TEST(TrackFit, TemporalSilhouetteAndPhotoSets) {
+  SynthTrack s(3, "walk", 4);
+  TrackOptions o;
+  o.fit.keypoints = KeypointConvention::kJoints;
+  o.fit.focal = s.truth[0].camera.fx;
+  o.progress = false;
+  o.temporal.silhouette = true;
+  const TrackResult r = track_subjects(s.frames, s.tmp / "sil", o);
+  ASSERT_TRUE(r.temporal.applied);
+  for (size_t f = 0; f < r.frames.size(); ++f) {
+    EXPECT_GT(r.frames[f].fit.costs.count("silhouette_cover"), 0u);
+    EXPECT_GT(r.frames[f].fit.costs.count("silhouette_inside"), 0u);
+    EXPECT_LT(evaluate_fit(estimate(r, f, false), s.truth[f]).mpjpe_mm, 60.0) << "frame " << f;
+  }
+  const TrackResult photos = track_subjects(s.frames, s.tmp / "photos", o, false);
+  EXPECT_FALSE(photos.temporal.applied);
+  for (const TrackFrame& f : photos.frames)
+    EXPECT_EQ(f.fit.params.body_pose, f.shared.params.body_pose);
+  EXPECT_FALSE(read_json(s.tmp / "photos/track.json")["temporal"]["applied"].get<bool>());
+}
+
 TEST(TrackFit, BadInputsGiveErrorsAndLeaveNothing) {
   test::TempDir dir("track_bad");
   const std::string out = dir / "out";
