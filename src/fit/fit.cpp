@@ -62,6 +62,13 @@ double fit_focal(const FitOptions& o, int width, int height) {
                      : 0.5 * std::max(width, height) / std::tan(0.5 * o.fov_degrees * kDeg);
 }
 
+double fit_focal(const FitOptions& o, const FitInput& in, std::string* source) {
+  const char* from = o.focal > 0 ? "option" : in.metadata_focal > 0 ? "metadata" : "field of view";
+  if (source) *source = from;
+  if (o.focal <= 0 && in.metadata_focal > 0) return in.metadata_focal;
+  return fit_focal(o, in.width, in.height);
+}
+
 Camera fit_camera(const FitOptions& o, int width, int height, const Eigen::Vector3d& t) {
   Camera c;
   c.width = width;
@@ -338,7 +345,9 @@ FitResult fit_body(const BodyModel& model, const FitInput& input, const FitOptio
                 "x" + std::to_string(input.height));
   if (options.schedule.per_start.empty() && options.schedule.refine.empty())
     throw Error("fit: the stage schedule is empty");
-  Fitter f(model, input, options);
+  FitOptions o = options;
+  o.focal = fit_focal(options, input);
+  Fitter f(model, input, o);
   return f.run();
 }
 

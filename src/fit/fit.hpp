@@ -111,6 +111,9 @@ struct FitInput {
   // 0 = absent.
   std::array<Eigen::Vector3d, kBody25Count> keypoints = absent_keypoints();
   Image mask;  // 1 channel in [0, 1] (>= 0.5 = person), width x height; empty = no silhouette
+  // The focal length (pixels) the photo's metadata gives (perceive.json's image.focal_px, from
+  // EXIF); 0 when it gives none. Used where FitOptions::focal is not set.
+  double metadata_focal = 0;
 };
 
 struct FitResult {
@@ -120,6 +123,10 @@ struct FitResult {
   bool facing_camera = true;            // the fitted body's front faces the camera
   double seconds = 0;
 };
+
+// The focal length the fit uses for `input`: options.focal, else the input's metadata focal, else
+// from the field of view; `source` (optional): "option", "metadata" or "field of view".
+double fit_focal(const FitOptions& options, const FitInput& input, std::string* source = nullptr);
 
 // Throws ks::Error when too few keypoints are given (the torso needs the neck or both
 // shoulders and both hips), or the mask's size differs from the image's.

@@ -1,5 +1,6 @@
 #include "fit/fit_file.hpp"
 
+#include <cmath>
 #include <filesystem>
 
 #include "core/error.hpp"
@@ -96,6 +97,18 @@ FitInput load_fit_input(const std::string& subject_dir) {
   ko.pixel_centre = 0.5;
   const KeypointFile kf = read_keypoints(kpath, ko);
   in.keypoints = fit_keypoints(kf.person);
+  // The focal length perceive found in the photo's metadata (older subjects have none).
+  const std::string ppath = (dir / "perceive.json").string();
+  if (fs::exists(ppath)) {
+    const nlohmann::json pj = read_json(ppath);
+    const auto img = pj.find("image");
+    if (img != pj.end() && img->is_object() && img->contains("focal_px")) {
+      const auto& f = (*img)["focal_px"];
+      if (!f.is_number() || !(f.get<double>() > 0) || !std::isfinite(f.get<double>()))
+        throw Error(ppath + ": image.focal_px must be a positive number");
+      in.metadata_focal = f.get<double>();
+    }
+  }
   return in;
 }
 

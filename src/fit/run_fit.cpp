@@ -24,8 +24,11 @@ FitResult run_fit(const std::string& subject_dir, const FitStageOptions& options
     write_png((dir / "fit_overlay.png").string(),
               fit_overlay(photo, model, r.params, r.camera, in.keypoints, options.fit.keypoints));
   }
+  std::string focal_from;
+  fit_focal(options.fit, in, &focal_from);
   save_fit((dir / "fit.json").string(), model_name, r,
-           {{"silhouette", options.fit.use_silhouette && !in.mask.empty()},
+           {{"focal_from", focal_from},
+            {"silhouette", options.fit.use_silhouette && !in.mask.empty()},
             {"keypoint_convention", to_string(options.fit.keypoints)}});
   return r;
 }

@@ -137,6 +137,10 @@ nlohmann::json photo_info(const std::string& photo, const Photo& p) {
                     {"bit_depth", p.bit_depth},
                     {"exif_orientation", p.exif_orientation}};
   info["image"] = {{"file", "image.png"}, {"width", p.rgb.width}, {"height", p.rgb.height}};
+  if (p.focal_35mm > 0) {  // the camera's focal length, as the photo's EXIF gives it
+    info["source"]["focal_35mm"] = p.focal_35mm;
+    info["image"]["focal_px"] = focal_px_from_35mm(p.focal_35mm, p.rgb.width, p.rgb.height);
+  }
   info["scale"] = {p.scale_x, p.scale_y};
   info["pixel_centre"] = 0.5;
   return info;

@@ -16,36 +16,114 @@ namespace ks {
 
 namespace {
 
-// Orientation tag (0x0112) in a TIFF block (EXIF data); 1 when absent or unreadable.
-int tiff_orientation(const uint8_t* p, size_t n) {
-  if (n < 8) return 1;
-  bool le;
-  if (p[0] == 'I' && p[1] == 'I')
-    le = true;
-  else if (p[0] == 'M' && p[1] == 'M')
-    le = false;
-  else
-    return 1;
-  auto u16 = [&](size_t o) -> uint32_t {
-    return le ? uint32_t(p[o]) | uint32_t(p[o + 1]) << 8 : uint32_t(p[o]) << 8 | uint32_t(p[o + 1]);
-  };
-  auto u32 = [&](size_t o) -> uint32_t {
-    return le ? u16(o) | u16(o + 2) << 16 : u16(o) << 16 | u16(o + 2);
-  };
-  if (u16(2) != 42) return 1;
-  const size_t ifd = u32(4);
-  if (ifd + 2 > n) return 1;
-  const size_t count = u16(ifd);
-  for (size_t i = 0; i < count; ++i) {
-    const size_t e = ifd + 2 + 12 * i;
-    if (e + 12 > n) return 1;
-    if (u16(e) == 0x0112 && u16(e + 2) == 3) {
-      const uint32_t v = u16(e + 8);
-      return v >= 1 && v <= 8 ? int(v) : 1;
+// A TIFF block (EXIF data): its byte order and the entries of its IFDs, every offset checked.
+class Tiff {
+ public:
+  Tiff(const uint8_t* p, size_t n) : p_(p), n_(n) {
+    if (n < 8) return;
+    if (p[0] == 'I' && p[1] == 'I')
+      le_ = true;
+    else if (p[0] == 'M' && p[1] == 'M')
+      le_ = false;
+    else
+      return;
+    ok_ = u16(2) == 42;
+  }
+  // IFD0's offset; 0 when the block is not TIFF.
+  size_t first_ifd() const { return ok_ ? u32(4) : 0; }
+  // Tag `tag` of the IFD at `ifd` with type SHORT (3) or LONG (4): its value; false when absent.
+  bool find(size_t ifd, uint32_t tag, uint32_t* value) const {
+    if (!ok_ || ifd == 0 || ifd + 2 > n_) return false;
+    const size_t count = u16(ifd);
+    for (size_t i = 0; i < count; ++i) {
+      const size_t e = ifd + 2 + 12 * i;
+      if (e + 12 > n_) return false;
+      if (u16(e) != tag) continue;
+      const uint32_t type = u16(e + 2);
+      if (type == 3)
+        *value = u16(e + 8);
+      else if (type == 4)
+        *value = u32(e + 8);
+      else
+        return false;
+      return true;
+    }
+    return false;
+  }
+
+ private:
+  uint32_t u16(size_t o) const {
+    if (o + 2 > n_) return 0;
+    return le_ ? uint32_t(p_[o]) | uint32_t(p_[o + 1]) << 8
+               : uint32_t(p_[o]) << 8 | uint32_t(p_[o + 1]);
+  }
+  uint32_t u32(size_t o) const {
+    return le_ ? u16(o) | u16(o + 2) << 16 : u16(o) << 16 | u16(o + 2);
+  }
+  const uint8_t* p_;
+  size_t n_;
+  bool le_ = true, ok_ = false;
+};
+
+// The file's EXIF TIFF block (a JPEG's APP1 "Exif" segment or a PNG's eXIf chunk); size 0 when
+// there is none.
+std::pair<const uint8_t*, size_t> exif_block(const std::vector<uint8_t>& b) {
+  const size_t n = b.size();
+  if (n >= 4 && b[0] == 0xFF && b[1] == 0xD8) {  // JPEG: walk the marker segments
+    size_t i = 2;
+    while (i + 4 <= n && b[i] == 0xFF) {
+      const uint8_t marker = b[i + 1];
+      if (marker == 0xD9 || marker == 0xDA) break;  // end of image / start of scan
+      const size_t len = size_t(b[i + 2]) << 8 | b[i + 3];
+      if (len < 2 || i + 2 + len > n) break;
+      if (marker == 0xE1 && len >= 8 && std::memcmp(&b[i + 4], "Exif\0\0", 6) == 0)
+        return {&b[i + 10], len - 8};
+      i += 2 + len;
+    }
+    return {nullptr, 0};
+  }
+  static const uint8_t png_sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  if (n >= 8 && std::memcmp(b.data(), png_sig, 8) == 0) {  // PNG: look for the eXIf chunk
+    size_t i = 8;
+    while (i + 12 <= n) {
+      const size_t len =
+          size_t(b[i]) << 24 | size_t(b[i + 1]) << 16 | size_t(b[i + 2]) << 8 | b[i + 3];
+      if (i + 12 + len > n) break;
+      if (std::memcmp(&b[i + 4], "eXIf", 4) == 0) return {&b[i + 8], len};
+      if (std::memcmp(&b[i + 4], "IEND", 4) == 0) break;
+      i += 12 + len;
     }
   }
-  return 1;
+  return {nullptr, 0};
 }
+
+}  // namespace
+
+int exif_orientation(const std::vector<uint8_t>& b) {
+  const auto [p, n] = exif_block(b);
+  if (n == 0) return 1;
+  const Tiff t(p, n);
+  uint32_t v = 0;
+  if (!t.find(t.first_ifd(), 0x0112, &v)) return 1;
+  return v >= 1 && v <= 8 ? int(v) : 1;
+}
+
+double exif_focal_35mm(const std::vector<uint8_t>& b) {
+  const auto [p, n] = exif_block(b);
+  if (n == 0) return 0;
+  const Tiff t(p, n);
+  uint32_t exif_ifd = 0, f = 0;
+  if (!t.find(t.first_ifd(), 0x8769, &exif_ifd)) return 0;  // ExifIFDPointer
+  if (!t.find(exif_ifd, 0xA405, &f)) return 0;              // FocalLengthIn35mmFilm
+  return f > 0 && f < 10000 ? double(f) : 0.0;
+}
+
+double focal_px_from_35mm(double focal_35mm, int width, int height) {
+  if (!(focal_35mm > 0) || width <= 0 || height <= 0) return 0;
+  return focal_35mm * std::hypot(double(width), double(height)) / std::hypot(36.0, 24.0);
+}
+
+namespace {
 
 cv::Mat decode(const std::vector<uint8_t>& bytes, const std::string& path) {
   return decode_image_file(bytes, path);
@@ -82,36 +160,6 @@ Image channel(const Image& img, int c) {
 }
 
 }  // namespace
-
-int exif_orientation(const std::vector<uint8_t>& b) {
-  const size_t n = b.size();
-  if (n >= 4 && b[0] == 0xFF && b[1] == 0xD8) {  // JPEG: walk the marker segments
-    size_t i = 2;
-    while (i + 4 <= n && b[i] == 0xFF) {
-      const uint8_t marker = b[i + 1];
-      if (marker == 0xD9 || marker == 0xDA) break;  // end of image / start of scan
-      const size_t len = size_t(b[i + 2]) << 8 | b[i + 3];
-      if (len < 2 || i + 2 + len > n) break;
-      if (marker == 0xE1 && len >= 8 && std::memcmp(&b[i + 4], "Exif\0\0", 6) == 0)
-        return tiff_orientation(&b[i + 10], len - 8);
-      i += 2 + len;
-    }
-    return 1;
-  }
-  static const uint8_t png_sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
-  if (n >= 8 && std::memcmp(b.data(), png_sig, 8) == 0) {  // PNG: look for the eXIf chunk
-    size_t i = 8;
-    while (i + 12 <= n) {
-      const size_t len =
-          size_t(b[i]) << 24 | size_t(b[i + 1]) << 16 | size_t(b[i + 2]) << 8 | b[i + 3];
-      if (i + 12 + len > n) break;
-      if (std::memcmp(&b[i + 4], "eXIf", 4) == 0) return tiff_orientation(&b[i + 8], len);
-      if (std::memcmp(&b[i + 4], "IEND", 4) == 0) break;
-      i += 12 + len;
-    }
-  }
-  return 1;
-}
 
 Image apply_exif_orientation(const Image& img, int o) {
   if (o <= 1 || o > 8) return img;
@@ -158,6 +206,7 @@ Photo load_photo(const std::string& path, int max_size) {
   p.source_channels = m.channels();
   Image img = to_image(m, path, p.bit_depth);
   p.exif_orientation = exif_orientation(bytes);
+  p.focal_35mm = exif_focal_35mm(bytes);
   img = apply_exif_orientation(img, p.exif_orientation);
   p.source_width = img.width;
   p.source_height = img.height;

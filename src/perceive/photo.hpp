@@ -18,6 +18,7 @@ struct Photo {
   int source_channels = 0;   // as stored: 1, 2 (grey + alpha), 3 or 4
   int bit_depth = 8;         // 8 or 16
   int exif_orientation = 1;  // 1..8 as found (1 when none)
+  double focal_35mm = 0;     // EXIF FocalLengthIn35mmFilm, mm (0 when none)
   double scale_x = 1.0;      // image pixels per source pixel
   double scale_y = 1.0;
 };
@@ -30,6 +31,15 @@ Photo load_photo(const std::string& path, int max_size = 0);
 // The EXIF orientation (1..8) in a JPEG's APP1 segment or a PNG's eXIf chunk; 1 when there is none
 // or it is unreadable.
 int exif_orientation(const std::vector<uint8_t>& file_bytes);
+
+// EXIF FocalLengthIn35mmFilm (mm) from the Exif IFD of a JPEG's APP1 segment or a PNG's eXIf
+// chunk; 0 when there is none or it is unreadable.
+double exif_focal_35mm(const std::vector<uint8_t>& file_bytes);
+
+// The focal length in pixels of a width x height image whose 35 mm equivalent focal length is
+// `focal_35mm`: the equivalence is by the diagonal (CIPA DC-008), f_px = f35 * diag_px / 43.27 mm.
+// 0 when focal_35mm is not positive.
+double focal_px_from_35mm(double focal_35mm, int width, int height);
 
 // Applies EXIF orientation `o` (1..8) to an interleaved image: the result is what a viewer shows.
 Image apply_exif_orientation(const Image& img, int o);

@@ -82,14 +82,12 @@ TrackResult fit_track(const BodyModel& model, const std::vector<TrackFrameInput>
   const auto t0 = std::chrono::steady_clock::now();
   TrackResult r;
   r.body_model = o.body;
-  std::vector<FitInput> inputs;
-  std::vector<TrackFrameInput> kept;
-  FitOptions pass1 = o.fit;
-  pass1.progress = false;
-  // Pass 1: each frame on its own.
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const TrackFrameInput& f = frames[i];
-    FitInput in = load_fit_input(f.subject_dir);
+  // Every frame's input, then one focal for all: the option, else the frames' metadata where
+  // they all agree (photos from one camera), else the field of view.
+  std::vector<FitInput> all;
+  for (const TrackFrameInput& f : frames) {
+    all.push_back(load_fit_input(f.subject_dir));
+    const FitInput& in = all.back();
     if (r.width == 0) {
       r.width = in.width;
       r.height = in.height;
@@ -98,6 +96,31 @@ TrackResult fit_track(const BodyModel& model, const std::vector<TrackFrameInput>
                   std::to_string(in.height) + ", the first frame " + std::to_string(r.width) + "x" +
                   std::to_string(r.height));
     }
+  }
+  FitOptions pass1 = o.fit;
+  pass1.progress = false;
+  r.focal_from = "field of view";
+  if (o.fit.focal > 0) {
+    r.focal_from = "option";
+  } else if (!all.empty()) {
+    const double f0 = all.front().metadata_focal;
+    bool agree = f0 > 0;
+    for (const FitInput& in : all) agree = agree && std::abs(in.metadata_focal - f0) <= 0.01 * f0;
+    if (agree) {
+      pass1.focal = f0;
+      r.focal_from = "metadata";
+    } else {
+      pass1.focal = fit_focal(o.fit, r.width, r.height);
+    }
+  }
+  for (FitInput& in : all) in.metadata_focal = 0;  // the one focal above holds for every frame
+  r.focal = fit_focal(pass1, r.width, r.height);
+  std::vector<FitInput> inputs;
+  std::vector<TrackFrameInput> kept;
+  // Pass 1: each frame on its own.
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const TrackFrameInput& f = frames[i];
+    FitInput& in = all[i];
     TrackFrame tf;
     tf.index = f.index;
     tf.time_s = f.time_s;
@@ -123,7 +146,6 @@ TrackResult fit_track(const BodyModel& model, const std::vector<TrackFrameInput>
   if (r.frames.empty())
     throw Error("track: no frame could be fitted" +
                 (r.skipped.empty() ? std::string() : " (" + r.skipped.front() + ")"));
-  r.focal = fit_focal(o.fit, r.width, r.height);
 
   // The shared shape: per coefficient the median over the frames.
   const int nb = int(r.frames.front().independent.params.betas.size());

@@ -61,6 +61,7 @@ struct TrackResult {
   std::string body_model = "default";
   Eigen::VectorXd betas;  // the shared shape
   double focal = 0;       // pixels of image.png
+  std::string focal_from = "field of view";  // "option", "metadata" (EXIF), "field of view"
   int width = 0, height = 0;
   double fps = 30;  // the kept frames' rate (the input's divided by the mean step between them)
   double input_fps = 30;

@@ -16,6 +16,7 @@ nlohmann::json track_json(const TrackResult& t) {
   j["body_model"] = t.body_model;
   j["betas"] = std::vector<double>(t.betas.data(), t.betas.data() + t.betas.size());
   j["focal"] = t.focal;
+  j["focal_from"] = t.focal_from;
   j["width"] = t.width;
   j["height"] = t.height;
   j["fps"] = t.fps;

@@ -325,6 +325,39 @@ TEST(Fit, TurnedAwayPersonIsFoundTurnedAway) {
   EXPECT_LT(m.pa_mpjpe_mm, 40.0);
 }
 
+// The focal perceive found in the photo's EXIF (perceive.json's image.focal_px) is the fit's
+// camera unless --focal says otherwise; a malformed one is an error naming the file.
+TEST(Fit, MetadataFocalFromPerceiveJson) {
+  SynthSubject s(4);
+  write_json_atomic(s.subject + "/perceive.json",
+                    {{"format", "kinesplat-perceive"}, {"image", {{"focal_px", 700.0}}}});
+  const FitInput in = load_fit_input(s.subject);
+  EXPECT_DOUBLE_EQ(in.metadata_focal, 700.0);
+  FitOptions o;
+  o.keypoints = KeypointConvention::kJoints;
+  std::string from;
+  EXPECT_DOUBLE_EQ(fit_focal(o, in, &from), 700.0);
+  EXPECT_EQ(from, "metadata");
+  EXPECT_DOUBLE_EQ(fit_body(default_body_model(), in, o).camera.fx, 700.0);
+  o.focal = 500;
+  EXPECT_DOUBLE_EQ(fit_focal(o, in, &from), 500.0);
+  EXPECT_EQ(from, "option");
+  FitInput none = in;
+  none.metadata_focal = 0;
+  o.focal = 0;
+  EXPECT_DOUBLE_EQ(fit_focal(o, none, &from), fit_focal(o, in.width, in.height));
+  EXPECT_EQ(from, "field of view");
+  for (const nlohmann::json& bad : {nlohmann::json("wide"), nlohmann::json(-3.0)}) {
+    write_json_atomic(s.subject + "/perceive.json", {{"image", {{"focal_px", bad}}}});
+    try {
+      load_fit_input(s.subject);
+      ADD_FAILURE() << "focal_px " << bad.dump() << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("focal_px"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(Fit, RefusesWithoutATorso) {
   FitInput in;
   in.width = 100;

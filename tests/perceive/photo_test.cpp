@@ -66,6 +66,83 @@ std::vector<uint8_t> jpeg_with_orientation(int orientation) {
   return out;
 }
 
+// A JPEG of blocks_bgr() whose EXIF holds IFD0 (orientation 1, the Exif IFD pointer) and an Exif
+// IFD with FocalLengthIn35mmFilm = focal, little-endian ("II"); `exif_ifd_at` overrides the
+// pointer (to test one that points outside the block).
+std::vector<uint8_t> jpeg_with_focal(int focal, uint32_t exif_ifd_at = 38) {
+  std::vector<uint8_t> jpg;
+  cv::imencode(".jpg", blocks_bgr(), jpg, {cv::IMWRITE_JPEG_QUALITY, 90});
+  std::vector<uint8_t> t = {'I',
+                            'I',
+                            42,
+                            0,
+                            8,
+                            0,
+                            0,
+                            0,  // header, IFD0 at 8
+                            2,
+                            0,  // two entries
+                            0x12,
+                            0x01,
+                            3,
+                            0,
+                            1,
+                            0,
+                            0,
+                            0,
+                            1,
+                            0,
+                            0,
+                            0,  // Orientation 1
+                            0x69,
+                            0x87,
+                            4,
+                            0,
+                            1,
+                            0,
+                            0,
+                            0,  // ExifIFDPointer, LONG
+                            uint8_t(exif_ifd_at),
+                            uint8_t(exif_ifd_at >> 8),
+                            uint8_t(exif_ifd_at >> 16),
+                            uint8_t(exif_ifd_at >> 24),
+                            0,
+                            0,
+                            0,
+                            0,  // no next IFD; the Exif IFD at 38:
+                            1,
+                            0,  // one entry
+                            0x05,
+                            0xA4,
+                            3,
+                            0,
+                            1,
+                            0,
+                            0,
+                            0,
+                            uint8_t(focal),
+                            uint8_t(focal >> 8),
+                            0,
+                            0,  // FocalLengthIn35mmFilm, SHORT
+                            0,
+                            0,
+                            0,
+                            0};
+  std::vector<uint8_t> app1 = {0xFF, 0xE1, 0, 0, 'E', 'x', 'i', 'f', 0, 0};
+  app1.insert(app1.end(), t.begin(), t.end());
+  const size_t len = app1.size() - 2;
+  app1[2] = uint8_t(len >> 8);
+  app1[3] = uint8_t(len & 0xFF);
+  std::vector<uint8_t> out;  // SOI, the APP1 segment, the rest
+  out.reserve(jpg.size() + app1.size());
+  for (size_t i = 0; i < jpg.size(); ++i) {
+    if (i == 2)
+      for (uint8_t b : app1) out.push_back(b);
+    out.push_back(jpg[i]);
+  }
+  return out;
+}
+
 // Where displayed pixel (x, y) comes from in the stored image, per the EXIF specification.
 std::array<int, 2> stored_pixel(int o, int x, int y) {
   switch (o) {
@@ -124,6 +201,27 @@ TEST(Photo, JpegExifOrientationIsHonoured) {
           EXPECT_NEAR(p.rgb.at(dx, dy, ch) * 255.0f, c[size_t(ch)], 12.0) << bx << "," << by;
       }
   }
+}
+
+// EXIF FocalLengthIn35mmFilm read through the Exif IFD; the pixel focal by the diagonal; a
+// pointer outside the block, a truncated block or none at all: 0.
+TEST(Photo, ExifFocalLength35mm) {
+  const auto bytes = jpeg_with_focal(26);
+  EXPECT_EQ(exif_orientation(bytes), 1);
+  EXPECT_DOUBLE_EQ(exif_focal_35mm(bytes), 26.0);
+  test::ScratchDir dir("photo_focal");
+  write_file_atomic(dir / "f.jpg", bytes.data(), bytes.size());
+  EXPECT_DOUBLE_EQ(load_photo(dir / "f.jpg").focal_35mm, 26.0);
+  // 36 x 24 mm itself: f_px = f_mm * (pixels per mm).
+  EXPECT_NEAR(focal_px_from_35mm(50, 3600, 2400), 5000.0, 1e-9);
+  EXPECT_NEAR(focal_px_from_35mm(26, 3024, 4032), 26 * 5040.0 / std::hypot(36.0, 24.0), 1e-9);
+  EXPECT_EQ(focal_px_from_35mm(0, 100, 100), 0.0);
+  EXPECT_EQ(exif_focal_35mm(jpeg_with_focal(26, 5000)), 0.0);
+  EXPECT_EQ(exif_focal_35mm(jpeg_with_orientation(6)), 0.0);
+  std::vector<uint8_t> cut = bytes;
+  cut.resize(60);  // inside the APP1 segment: its length runs past the end
+  EXPECT_EQ(exif_focal_35mm(cut), 0.0);
+  EXPECT_EQ(exif_focal_35mm({}), 0.0);
 }
 
 TEST(Photo, NoExifMeansUpright) {
