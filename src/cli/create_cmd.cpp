@@ -71,7 +71,9 @@ ks::cli::CommandGroup group(29, [](CLI::App& app) {
                   "Where --keypoints-file puts the centre of the top-left pixel: 0 (OpenPose, "
                   "COCO) or 0.5 (kinesplat's files)")
       ->check(CLI::IsMember({0.0, 0.5}));
-  sub->add_option("--focal", a->o.fit.fit.focal, "Focal length of the photo in pixels");
+  sub->add_option("--focal", a->o.fit.fit.focal,
+                  "Focal length of the photo in pixels of subject/image.png (default: the photo's "
+                  "EXIF focal, else a 40 degree field of view)");
   sub->add_flag("--no-face-fusion", a->no_face_fusion, "augment: do not fuse the photo's face");
   sub->add_option("--face-warp", a->o.augment.face_warp,
                   "augment: body (through the fitted body, turning with the head) or similarity")

@@ -36,7 +36,8 @@ ks::cli::CommandGroup group(24, [](CLI::App& app) {
   sub->add_option("--body", args->so.body, "Body model: 'default' or an SMPL / SMPL-X .npz")
       ->capture_default_str();
   sub->add_option("--focal", args->so.fit.focal,
-                  "Focal length in pixels of image.png (default: from --fov)");
+                  "Focal length in pixels of image.png (default: the photo's EXIF focal as "
+                  "perceive found it, else from --fov)");
   sub->add_option("--fov", args->so.fit.fov_degrees,
                   "Field of view across the image's long side, degrees, when --focal is not given")
       ->capture_default_str()

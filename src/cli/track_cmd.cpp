@@ -38,9 +38,11 @@ ks::cli::CommandGroup group(25, [](CLI::App& app) {
                   "At most this many frames, evenly spread (0: all)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  auto* focal = sub->add_option("--focal", a->o.fit.focal,
-                                "Focal length in pixels of the frames as perceive writes them "
-                                "(image.png; default: from --fov)");
+  auto* focal = sub->add_option(
+      "--focal", a->o.fit.focal,
+      "Focal length in pixels of the frames as perceive writes them "
+      "(image.png; default: the photos' EXIF focal where they all give the same one, "
+      "else from --fov)");
   auto* fov = sub->add_option("--fov", a->o.fit.fov_degrees,
                               "Field of view across the frame's long side, degrees, when --focal "
                               "is not given")
