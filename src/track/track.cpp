@@ -162,8 +162,17 @@ TrackResult fit_track(const BodyModel& model, const std::vector<TrackFrameInput>
   pass2.initial_betas = r.betas;
   for (auto* stages : {&pass2.schedule.per_start, &pass2.schedule.refine})
     for (FitStage& s : *stages) s.free_betas = false;
+  const bool pass3 = sequence && o.temporal.enabled && r.frames.size() >= 3;
+  r.shared_pass = !pass3 || o.shared_pass;
   for (size_t i = 0; i < r.frames.size(); ++i) {
     TrackFrame& tf = r.frames[i];
+    if (!r.shared_pass) {  // pass 3 starts from pass 1's poses with the shared shape
+      tf.shared = tf.independent;
+      tf.shared.params.betas = r.betas;
+      tf.fit = tf.shared;
+      tf.subject = kept[i].subject_dir;
+      continue;
+    }
     tf.shared = fit_body(model, inputs[i], pass2);
     tf.shared.params.betas = r.betas;
     tf.fit = tf.shared;
@@ -176,7 +185,7 @@ TrackResult fit_track(const BodyModel& model, const std::vector<TrackFrameInput>
 
   // Pass 3 on a sequence: all frames at once with the temporal terms.
   r.sequence = sequence;
-  if (sequence && o.temporal.enabled && r.frames.size() >= 3) {
+  if (pass3) {
     std::vector<double> times;
     std::vector<FitResult> fits;
     for (const TrackFrame& f : r.frames) {

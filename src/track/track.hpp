@@ -30,6 +30,10 @@ struct TrackOptions {
   // Pass 3 on sequences (a video, a folder of frames; not a set of photos): all frames at once
   // with the temporal terms (track/temporal.hpp).
   TemporalOptions temporal;
+  // Pass 2 before pass 3 too (where pass 3 does not run, pass 2 always does). Off: pass 3 starts
+  // from pass 1's poses with the shared shape — on synth seeds 3 / 7 / 5 the same figures within
+  // 0.4 mm and half the fitting time (docs/track.md).
+  bool shared_pass = false;
   bool progress = true;  // a line per stage and frame on stderr
   // run_track: each frame's fit drawn on it (fit/overlay.hpp) as TRACK/frames/NNNN/fit_overlay.png
   // and TRACK/overlay.mp4 (the video only where ffmpeg is found).
@@ -59,14 +63,15 @@ struct TrackFrame {
 
 struct TrackResult {
   std::string body_model = "default";
-  Eigen::VectorXd betas;  // the shared shape
-  double focal = 0;       // pixels of image.png
+  Eigen::VectorXd betas;                     // the shared shape
+  double focal = 0;                          // pixels of image.png
   std::string focal_from = "field of view";  // "option", "metadata" (EXIF), "field of view"
   int width = 0, height = 0;
   double fps = 30;  // the kept frames' rate (the input's divided by the mean step between them)
   double input_fps = 30;
   bool video = false;
-  bool sequence = false;  // frames in time order (a video or a folder): pass 3 ran on them
+  bool sequence = false;    // frames in time order (a video or a folder): pass 3 ran on them
+  bool shared_pass = true;  // pass 2 ran (TrackFrame::shared is its fit)
   TemporalReport temporal;
   std::vector<TrackFrame> frames;
   std::vector<std::string> skipped;  // "SOURCE (frame n): why"

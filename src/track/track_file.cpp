@@ -43,9 +43,10 @@ nlohmann::json track_json(const TrackResult& t) {
     fj["swapped"] = f.swapped;
     fj["restarted"] = f.restarted;
     const auto cs = f.shared.costs.find("total");
-    fj["shared"] = {{"params", f.shared.params.to_json()},
-                    {"camera", f.shared.camera.to_json()},
-                    {"cost", cs == f.shared.costs.end() ? 0.0 : cs->second}};
+    if (t.shared_pass)
+      fj["shared"] = {{"params", f.shared.params.to_json()},
+                      {"camera", f.shared.camera.to_json()},
+                      {"cost", cs == f.shared.costs.end() ? 0.0 : cs->second}};
     const auto ci = f.independent.costs.find("total");
     fj["independent"] = {{"betas", std::vector<double>(f.independent.params.betas.data(),
                                                        f.independent.params.betas.data() +
@@ -58,6 +59,7 @@ nlohmann::json track_json(const TrackResult& t) {
   j["frames"] = frames;
   j["skipped"] = t.skipped;
   j["sequence"] = t.sequence;
+  j["shared_pass"] = t.shared_pass;
   j["temporal"] = {
       {"applied", t.temporal.applied},       {"cost_before", t.temporal.cost_before},
       {"cost_after", t.temporal.cost_after}, {"temporal_cost", t.temporal.temporal_cost},

@@ -239,6 +239,10 @@ TEST(TrackFit, SharedShapeAndPosesOnACleanSynthWalk) {
               median(mpjpe), median(mpjpe1), median(pa));
   const nlohmann::json j = read_json(out + "/track.json");
   EXPECT_EQ(j["format"], "kinesplat-track");
+  // A sequence: pass 3 from pass 1, no pass 2 (TrackOptions::shared_pass off).
+  EXPECT_TRUE(j["temporal"]["applied"].get<bool>());
+  EXPECT_FALSE(j["shared_pass"].get<bool>());
+  EXPECT_FALSE(j["frames"][0].contains("shared"));
   EXPECT_EQ(j["frames"].size(), 4u);
   EXPECT_EQ(j["betas"].size(), 10u);
   EXPECT_NEAR(j["focal"].get<double>(), o.fit.focal, 1e-9);
@@ -269,7 +273,10 @@ TEST(TrackFit, TemporalSilhouetteAndPhotoSets) {
   EXPECT_FALSE(photos.temporal.applied);
   for (const TrackFrame& f : photos.frames)
     EXPECT_EQ(f.fit.params.body_pose, f.shared.params.body_pose);
-  EXPECT_FALSE(read_json(s.tmp / "photos/track.json")["temporal"]["applied"].get<bool>());
+  const nlohmann::json pj = read_json(s.tmp / "photos/track.json");
+  EXPECT_FALSE(pj["temporal"]["applied"].get<bool>());
+  EXPECT_TRUE(pj["shared_pass"].get<bool>());  // a photo set always has pass 2
+  EXPECT_TRUE(pj["frames"][0].contains("shared"));
 }
 
 TEST(TrackFit, BadInputsGiveErrorsAndLeaveNothing) {
