@@ -32,11 +32,29 @@ cv::Mat blocks_bgr() {
   return m;
 }
 
-// A JPEG of blocks_bgr() with an EXIF APP1 segment carrying `orientation` (built by hand:
-// OpenCV does not write EXIF). Big-endian ("MM") TIFF with one IFD entry.
-std::vector<uint8_t> jpeg_with_orientation(int orientation) {
+// A JPEG of blocks_bgr() at `quality` with an EXIF APP1 segment holding `tiff` (built by hand:
+// OpenCV does not write EXIF), right after SOI.
+std::vector<uint8_t> jpeg_with_exif(int quality, const std::vector<uint8_t>& tiff) {
   std::vector<uint8_t> jpg;
-  cv::imencode(".jpg", blocks_bgr(), jpg, {cv::IMWRITE_JPEG_QUALITY, 98});
+  cv::imencode(".jpg", blocks_bgr(), jpg, {cv::IMWRITE_JPEG_QUALITY, quality});
+  std::vector<uint8_t> app1 = {0xFF, 0xE1, 0, 0, 'E', 'x', 'i', 'f', 0, 0};
+  app1.insert(app1.end(), tiff.begin(), tiff.end());
+  const size_t len = app1.size() - 2;
+  app1[2] = uint8_t(len >> 8);
+  app1[3] = uint8_t(len & 0xFF);
+  std::vector<uint8_t> out;  // SOI, the APP1 segment, the rest of the JPEG
+  out.reserve(jpg.size() + app1.size());
+  for (size_t i = 0; i < jpg.size(); ++i) {
+    if (i == 2)
+      for (uint8_t b : app1) out.push_back(b);
+    out.push_back(jpg[i]);
+  }
+  return out;
+}
+
+// A JPEG of blocks_bgr() with an EXIF APP1 segment carrying `orientation`. Big-endian ("MM") TIFF
+// with one IFD entry.
+std::vector<uint8_t> jpeg_with_orientation(int orientation) {
   const std::vector<uint8_t> tiff = {'M',  'M',
                                      0,    42,
                                      0,    0,
@@ -50,28 +68,13 @@ std::vector<uint8_t> jpeg_with_orientation(int orientation) {
                                      0,    0,  // value
                                      0,    0,
                                      0,    0};  // no next IFD
-  std::vector<uint8_t> app1 = {0xFF, 0xE1, 0, 0, 'E', 'x', 'i', 'f', 0, 0};
-  app1.insert(app1.end(), tiff.begin(), tiff.end());
-  const size_t len = app1.size() - 2;
-  app1[2] = uint8_t(len >> 8);
-  app1[3] = uint8_t(len & 0xFF);
-  // SOI, then the APP1 segment, then the rest of the JPEG.
-  std::vector<uint8_t> out;
-  out.reserve(jpg.size() + app1.size());
-  for (size_t i = 0; i < jpg.size(); ++i) {
-    if (i == 2)
-      for (uint8_t b : app1) out.push_back(b);
-    out.push_back(jpg[i]);
-  }
-  return out;
+  return jpeg_with_exif(98, tiff);
 }
 
 // A JPEG of blocks_bgr() whose EXIF holds IFD0 (orientation 1, the Exif IFD pointer) and an Exif
 // IFD with FocalLengthIn35mmFilm = focal, little-endian ("II"); `exif_ifd_at` overrides the
 // pointer (to test one that points outside the block).
 std::vector<uint8_t> jpeg_with_focal(int focal, uint32_t exif_ifd_at = 38) {
-  std::vector<uint8_t> jpg;
-  cv::imencode(".jpg", blocks_bgr(), jpg, {cv::IMWRITE_JPEG_QUALITY, 90});
   std::vector<uint8_t> t = {'I',
                             'I',
                             42,
@@ -128,19 +131,7 @@ std::vector<uint8_t> jpeg_with_focal(int focal, uint32_t exif_ifd_at = 38) {
                             0,
                             0,
                             0};
-  std::vector<uint8_t> app1 = {0xFF, 0xE1, 0, 0, 'E', 'x', 'i', 'f', 0, 0};
-  app1.insert(app1.end(), t.begin(), t.end());
-  const size_t len = app1.size() - 2;
-  app1[2] = uint8_t(len >> 8);
-  app1[3] = uint8_t(len & 0xFF);
-  std::vector<uint8_t> out;  // SOI, the APP1 segment, the rest
-  out.reserve(jpg.size() + app1.size());
-  for (size_t i = 0; i < jpg.size(); ++i) {
-    if (i == 2)
-      for (uint8_t b : app1) out.push_back(b);
-    out.push_back(jpg[i]);
-  }
-  return out;
+  return jpeg_with_exif(90, t);
 }
 
 // Where displayed pixel (x, y) comes from in the stored image, per the EXIF specification.

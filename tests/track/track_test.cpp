@@ -97,6 +97,15 @@ struct SynthTrack {
   }
 };
 
+// Options for the clean walk: its true keypoints (the joints' convention), the true focal.
+TrackOptions clean_walk_options(const SynthTrack& s) {
+  TrackOptions o;
+  o.fit.keypoints = KeypointConvention::kJoints;
+  o.fit.focal = s.truth[0].camera.fx;
+  o.progress = false;
+  return o;
+}
+
 SubjectFit estimate(const TrackResult& r, size_t f, bool independent) {
   SubjectFit e;
   e.model = default_model();
@@ -213,13 +222,10 @@ TEST(TrackMotion, KnownMotionRoundTripsThroughMotionNpz) {
   }
 }
 
-// Both passes on a clean synth walk: one shape, every frame's pose near the truth.
+// Pass 1 and pass 3 on a clean synth walk: one shape, every frame's pose near the truth.
 TEST(TrackFit, SharedShapeAndPosesOnACleanSynthWalk) {
   SynthTrack s(3, "walk", 4);
-  TrackOptions o;
-  o.fit.keypoints = KeypointConvention::kJoints;
-  o.fit.focal = s.truth[0].camera.fx;
-  o.progress = false;
+  const TrackOptions o = clean_walk_options(s);
   const std::string out = s.tmp / "track";
   const TrackResult r = track_subjects(s.frames, out, o);
   ASSERT_EQ(r.frames.size(), 4u);
@@ -257,10 +263,7 @@ TEST(TrackFit, SharedShapeAndPosesOnACleanSynthWalk) {
 // in every frame's costs, the poses stay near the truth; as a set of photos, no pass 3.
 TEST(TrackFit, TemporalSilhouetteAndPhotoSets) {
   SynthTrack s(3, "walk", 4);
-  TrackOptions o;
-  o.fit.keypoints = KeypointConvention::kJoints;
-  o.fit.focal = s.truth[0].camera.fx;
-  o.progress = false;
+  TrackOptions o = clean_walk_options(s);
   o.temporal.silhouette = true;
   const TrackResult r = track_subjects(s.frames, s.tmp / "sil", o);
   ASSERT_TRUE(r.temporal.applied);
