@@ -95,6 +95,15 @@ inline Eigen::Vector3d matrix_to_axis_angle(const Eigen::Matrix3d& R) {
   return a.angle() * a.axis();
 }
 
+// The rotation a share w in [0, 1] of the way from axis-angle a to b along the shortest arc
+// (spherical linear interpolation): R_a exp(w log(R_a^T R_b)).
+inline Eigen::Vector3d interpolate_axis_angle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                              double w) {
+  const Eigen::Matrix3d Ra = axis_angle_to_matrix(a);
+  const Eigen::Vector3d d = matrix_to_axis_angle(Ra.transpose() * axis_angle_to_matrix(b));
+  return matrix_to_axis_angle(Ra * axis_angle_to_matrix(Eigen::Vector3d(w * d)));
+}
+
 // Hamilton product out = a * b of quaternions (w, x, y, z). `out` must not alias a or b.
 template <class T>
 inline void quat_mul(const T* a, const T* b, T* out) {

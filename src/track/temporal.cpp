@@ -218,20 +218,14 @@ double label_cost(const Keypoints& k, const std::vector<Eigen::Vector2d>& pred, 
   return c;
 }
 
-// Rotation interpolation of two axis-angles at w in [0, 1].
-Eigen::Vector3d slerp_aa(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double w) {
-  const Eigen::Matrix3d Ra = axis_angle_to_matrix(a), Rb = axis_angle_to_matrix(b);
-  const Eigen::Vector3d d = matrix_to_axis_angle(Ra.transpose() * Rb);
-  return matrix_to_axis_angle(Ra * axis_angle_to_matrix(Eigen::Vector3d(w * d)));
-}
-
 Eigen::VectorXd interpolate(const Layout& L, const Eigen::VectorXd& a, const Eigen::VectorXd& b,
                             double w) {
   Eigen::VectorXd x = a;
-  x.segment<3>(L.orient) = slerp_aa(a.segment<3>(L.orient), b.segment<3>(L.orient), w);
+  x.segment<3>(L.orient) =
+      interpolate_axis_angle(a.segment<3>(L.orient), b.segment<3>(L.orient), w);
   for (int j = 0; j < L.pose_joints; ++j)
     x.segment<3>(L.pose + 3 * j) =
-        slerp_aa(a.segment<3>(L.pose + 3 * j), b.segment<3>(L.pose + 3 * j), w);
+        interpolate_axis_angle(a.segment<3>(L.pose + 3 * j), b.segment<3>(L.pose + 3 * j), w);
   x.segment<3>(L.cam) = (1 - w) * a.segment<3>(L.cam) + w * b.segment<3>(L.cam);
   return x;
 }

@@ -160,5 +160,25 @@ TEST(Rotation, QuaternionsMatchEigen) {
   }
 }
 
+// Interpolation along the shortest arc: the ends, half of one rotation about an axis, and half
+// way between two rotations the same angle from either end.
+TEST(Rotation, InterpolateAxisAngle) {
+  const Eigen::Vector3d a(0.3, -0.2, 0.5), b(-0.4, 0.9, 0.1);
+  EXPECT_LT(
+      (axis_angle_to_matrix(interpolate_axis_angle(a, b, 0.0)) - axis_angle_to_matrix(a)).norm(),
+      1e-12);
+  EXPECT_LT(
+      (axis_angle_to_matrix(interpolate_axis_angle(a, b, 1.0)) - axis_angle_to_matrix(b)).norm(),
+      1e-12);
+  EXPECT_LT((interpolate_axis_angle(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 1.2, 0), 0.5) -
+             Eigen::Vector3d(0, 0.6, 0))
+                .norm(),
+            1e-12);
+  const Eigen::Matrix3d m = axis_angle_to_matrix(interpolate_axis_angle(a, b, 0.5));
+  const double da = matrix_to_axis_angle(axis_angle_to_matrix(a).transpose() * m).norm();
+  const double db = matrix_to_axis_angle(m.transpose() * axis_angle_to_matrix(b)).norm();
+  EXPECT_NEAR(da, db, 1e-9);
+}
+
 }  // namespace
 }  // namespace ks
