@@ -152,4 +152,51 @@ inline void matrix_to_quat(const typename L::V* m, typename L::V* q) {
   q[0] = w / n, q[1] = x / n, q[2] = y / n, q[3] = z / n;
 }
 
+// The backward of matrix_to_quat for one matrix (double): d loss / d m (row-major 3 x 3) from
+// dq = d loss / d q, with the forward's case split (the trace when positive, else the largest
+// diagonal entry) and normalisation. Overwrites dm.
+inline void matrix_to_quat_backward(const double* m, const double* dq, double* dm) {
+  const double m00 = m[0], m01 = m[1], m02 = m[2], m10 = m[3], m11 = m[4], m12 = m[5], m20 = m[6],
+               m21 = m[7], m22 = m[8];
+  int c;  // the unnormalised quaternion's large entry: 0 (w, the trace case), 1 (x), 2 (y), 3 (z)
+  if (m00 + m11 + m22 > 0.0)
+    c = 0;
+  else if (m22 > (m11 > m00 ? m11 : m00))
+    c = 3;
+  else
+    c = m11 > m00 ? 2 : 1;
+  // s = 1 + sign . diag, u[c] = r / 2, u[k] = P_k / (2 r) for the three others (r = sqrt(s)).
+  static constexpr double kSign[4][3] = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}};
+  const double s = 1.0 + kSign[c][0] * m00 + kSign[c][1] * m11 + kSign[c][2] * m22;
+  const double r = std::sqrt(s), h = 0.5 / r;
+  // P for each entry k != c: a = m21 - m12 (w, x), b = m02 - m20 (w, y), c = m10 - m01 (w, z),
+  // d = m10 + m01 (x, y), e = m20 + m02 (x, z), f = m21 + m12 (y, z).
+  const double a = m21 - m12, b = m02 - m20, cc = m10 - m01, d = m10 + m01, e = m20 + m02,
+               f = m21 + m12;
+  static constexpr int kP[4][4] = {{-1, 0, 1, 2}, {0, -1, 3, 4}, {1, 3, -1, 5}, {2, 4, 5, -1}};
+  const double P[6] = {a, b, cc, d, e, f};
+  double u[4];
+  for (int k = 0; k < 4; ++k) u[k] = k == c ? 0.5 * r : P[kP[c][k]] * h;
+  const double n = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2] + u[3] * u[3]);
+  double qd = 0;
+  for (int k = 0; k < 4; ++k) qd += u[k] / n * dq[k];
+  double du[4];
+  for (int k = 0; k < 4; ++k) du[k] = (dq[k] - u[k] / n * qd) / n;
+  // dr/ds = 1 / (2 r), dh/ds = -h / (2 s).
+  double ds = du[c] * 0.25 / r, dP[6] = {0, 0, 0, 0, 0, 0};
+  for (int k = 0; k < 4; ++k) {
+    if (k == c) continue;
+    dP[kP[c][k]] = du[k] * h;
+    ds += du[k] * P[kP[c][k]] * (-h / (2.0 * s));
+  }
+  for (int k = 0; k < 9; ++k) dm[k] = 0;
+  dm[0] += kSign[c][0] * ds, dm[4] += kSign[c][1] * ds, dm[8] += kSign[c][2] * ds;
+  dm[7] += dP[0], dm[5] -= dP[0];  // a
+  dm[2] += dP[1], dm[6] -= dP[1];  // b
+  dm[3] += dP[2], dm[1] -= dP[2];  // c
+  dm[3] += dP[3], dm[1] += dP[3];  // d
+  dm[6] += dP[4], dm[2] += dP[4];  // e
+  dm[7] += dP[5], dm[5] += dP[5];  // f
+}
+
 }  // namespace ks

@@ -180,5 +180,38 @@ TEST(Rotation, InterpolateAxisAngle) {
   EXPECT_NEAR(da, db, 1e-9);
 }
 
+TEST(Rotation, MatrixToQuatBackwardMatchesFiniteDifferences) {
+  // Each of Shepperd's cases (a small rotation, half-turns nearly about x, y, z), on rotations
+  // and on shrunk, perturbed blends; the forward in double is Eigen's conversion normalised (the
+  // same case split as matrix_to_quat, checked above), its sign fixed by the unperturbed one's.
+  std::mt19937_64 rng(11);
+  const Eigen::Vector3d axes[4] = {
+      {0.3, -0.5, 0.8}, {1, 0.05, -0.02}, {0.03, 1, 0.04}, {-0.02, 0.05, 1}};
+  const double angles[4] = {0.4, 3.0, 3.0, 3.0};
+  for (int c = 0; c < 4; ++c)
+    for (int blend = 0; blend < 2; ++blend) {
+      Eigen::Matrix3d R = Eigen::AngleAxisd(angles[c], axes[c].normalized()).toRotationMatrix();
+      if (blend) {
+        const auto v = test::randv(9, rng, -0.03, 0.03);
+        R *= 0.93;
+        for (int e = 0; e < 9; ++e) R(e / 3, e % 3) += v[size_t(e)];
+      }
+      const Eigen::Quaterniond q0 = Eigen::Quaterniond(R).normalized();
+      const auto dq = test::randv(4, rng);
+      auto f = [&](const std::vector<double>& m) {
+        Eigen::Matrix3d M;
+        for (int e = 0; e < 9; ++e) M(e / 3, e % 3) = m[size_t(e)];
+        Eigen::Quaterniond q = Eigen::Quaterniond(M).normalized();
+        if (q.dot(q0) < 0) q.coeffs() *= -1.0;
+        return q.w() * dq[0] + q.x() * dq[1] + q.y() * dq[2] + q.z() * dq[3];
+      };
+      std::vector<double> m(9), g(9);
+      for (int e = 0; e < 9; ++e) m[size_t(e)] = R(e / 3, e % 3);
+      // Our quaternion's sign is the one Eigen's gives (both take the same case's root).
+      matrix_to_quat_backward(m.data(), dq.data(), g.data());
+      test::expect_grad(f, m, g, 1e-6, 1e-6);
+    }
+}
+
 }  // namespace
 }  // namespace ks
