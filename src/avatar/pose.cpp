@@ -102,6 +102,47 @@ Gaussians pose_avatar(const Avatar& a, const BodyParams& p) {
   return out;
 }
 
+void pose_avatar(const Avatar& a, const BodyParams& p, Gaussians& out, AvatarPoseState& st) {
+  st.pose = avatar_full_pose(a, p);
+  st.transl = p.transl;
+  st.skeleton = forward_kinematics<double>(a.parents, a.rest_joints, st.pose, st.transl);
+  if (a.posedirs.size() > 0)
+    st.offsets = a.posedirs * pose_feature(st.skeleton.local).cast<float>();
+  else
+    st.offsets.resize(0);
+  lbs_forward(a.gaussians, st.offsets.size() > 0 ? st.offsets.data() : nullptr, a.skin_joints,
+              a.skin_weights, st.skeleton.transforms, out, &st.cache);
+}
+
+void pose_avatar_backward(const Avatar& a, const AvatarPoseState& st,
+                          const std::vector<float>& dmeans, const std::vector<float>& dquats,
+                          Eigen::MatrixXd& dpose, Eigen::Vector3d& dtransl) {
+  const int J = a.num_joints();
+  if (st.pose.rows() != J || int(st.skeleton.local.size()) != J)
+    throw Error("pose_avatar_backward: the state is from another avatar");
+  const bool correctives = st.offsets.size() > 0;
+  std::vector<Eigen::Matrix<double, 3, 4>> dA;
+  std::vector<float> doff;
+  lbs_transforms_backward(a.gaussians, correctives ? st.offsets.data() : nullptr, a.skin_joints,
+                          a.skin_weights, J, st.cache, dmeans, dquats, dA,
+                          correctives ? &doff : nullptr);
+  forward_kinematics_backward(a.parents, a.rest_joints, st.pose, st.skeleton, Eigen::MatrixXd(), dA,
+                              &dpose, nullptr, &dtransl);
+  if (!correctives) return;
+  // offsets = posedirs f, f = (L_j - I) row-major for j >= 1: d L_j = d f's block, and each
+  // joint's local rotation is Rodrigues of its own pose row.
+  const Eigen::VectorXf df = a.posedirs.transpose() * Eigen::Map<const Eigen::VectorXf>(
+                                                          doff.data(), Eigen::Index(doff.size()));
+  for (int j = 1; j < J; ++j) {
+    Eigen::Matrix3d dL;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) dL(r, c) = double(df[9 * (j - 1) + 3 * r + c]);
+    dpose.row(j) +=
+        axis_angle_to_matrix_backward<double>(Eigen::Vector3d(st.pose.row(j).transpose()), dL)
+            .transpose();
+  }
+}
+
 BodyParams avatar_params_from_json(const Avatar& avatar, const nlohmann::json& j) {
   BodyModel m;  // only the kind and counts are consulted by from_json
   const std::string& k = avatar.body_kind;

@@ -10,6 +10,7 @@
 #include "avatar/avatar.hpp"
 #include "body/body_model.hpp"
 #include "body/lbs.hpp"
+#include "body/posing.hpp"
 
 namespace ks {
 
@@ -49,6 +50,25 @@ AvatarPoseInputs avatar_pose_inputs(const Avatar& avatar, const BodyParams& para
 void pose_avatar(const Avatar& avatar, const BodyParams& params, Gaussians& out,
                  const BackfaceCull* cull = nullptr, bool keep_unposed = false);
 Gaussians pose_avatar(const Avatar& avatar, const BodyParams& params);
+
+// Posing with its backward, for registration (the Gaussians fixed, the pose learned): the
+// forward keeps what the backward needs.
+struct AvatarPoseState {
+  Eigen::MatrixXd pose;  // J x 3 (avatar_full_pose)
+  Eigen::Vector3d transl = Eigen::Vector3d::Zero();
+  PosedSkeleton<double> skeleton;
+  Eigen::VectorXf offsets;  // 3N pose correctives, or empty
+  LbsCache cache;
+};
+// pose_avatar (no culling), keeping `state`.
+void pose_avatar(const Avatar& avatar, const BodyParams& params, Gaussians& out,
+                 AvatarPoseState& state);
+// d loss / d (full pose, J x 3) and d loss / d transl from dmeans (3N) and dquats (4N) of the
+// posed Gaussians, through LBS (body/lbs.hpp lbs_transforms_backward), the pose correctives'
+// feature and forward kinematics (body/posing.hpp).
+void pose_avatar_backward(const Avatar& avatar, const AvatarPoseState& state,
+                          const std::vector<float>& dmeans, const std::vector<float>& dquats,
+                          Eigen::MatrixXd& dpose, Eigen::Vector3d& dtransl);
 
 // Pose parameters from the PARAMS.json layout (BodyParams::from_json) checked against the
 // avatar's skeleton kind (no body-model file needed). The avatar's shape is fixed: 'betas' other

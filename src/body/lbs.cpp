@@ -1,6 +1,7 @@
 #include "body/lbs.hpp"
 #pragma GCC diagnostic ignored "-Wpsabi"
 
+#include <omp.h>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <atomic>
@@ -335,6 +336,75 @@ void lbs_backward(const LbsCache& cache, const std::vector<float>& dmp,
     const float conj[4] = {qb[0], -qb[1], -qb[2], -qb[3]};
     quat_mul(conj, dqp.data() + 4 * u, dqc.data() + 4 * u);
   }
+}
+
+void lbs_transforms_backward(const Gaussians& c, const float* pose_offsets,
+                             const std::vector<int>& skin_joints,
+                             const std::vector<float>& skin_weights, int J, const LbsCache& cache,
+                             const std::vector<float>& dmp, const std::vector<float>& dqp,
+                             std::vector<Eigen::Matrix<double, 3, 4>>& dA,
+                             std::vector<float>* doffsets) {
+  const long n = long(c.size());
+  int K = 4;
+  check_skin(c, skin_joints, skin_weights, K);
+  if (cache.M.size() != 12 * size_t(n) || cache.qblend.size() != 4 * size_t(n) ||
+      dmp.size() != 3 * size_t(n) || dqp.size() != 4 * size_t(n))
+    throw Error("lbs_transforms_backward: gradients do not match the forward pass");
+  if (J <= 0) throw Error("lbs_transforms_backward: no joints");
+  for (const int j : skin_joints)
+    if (j < 0 || j >= J) throw_joint_out_of_range(skin_joints, uint32_t(J));
+  if (doffsets) doffsets->resize(3 * size_t(n));
+  using M34 = Eigen::Matrix<double, 3, 4>;
+  // Per-thread sums added in thread order afterwards (the same result on every run).
+  const bool par = n > 1024;
+  std::vector<std::vector<M34>> sums(size_t(par ? omp_get_max_threads() : 1));
+#pragma omp parallel if (par)
+  {
+    std::vector<M34>& acc = sums[size_t(omp_get_thread_num())];
+    acc.assign(size_t(J), M34::Zero());
+#pragma omp for schedule(static)
+    for (long i = 0; i < n; ++i) {
+      const size_t u = size_t(i);
+      const float* a = cache.M.data() + 12 * u;
+      const float* g = dmp.data() + 3 * u;
+      double x[3];
+      for (int k = 0; k < 3; ++k)
+        x[k] = double(c.means[3 * u + k]) + (pose_offsets ? double(pose_offsets[3 * u + k]) : 0.0);
+      M34 dM;
+      for (int r = 0; r < 3; ++r) {
+        for (int k = 0; k < 3; ++k) dM(r, k) = double(g[r]) * x[k];
+        dM(r, 3) = double(g[r]);
+      }
+      if (doffsets)
+        for (int k = 0; k < 3; ++k)
+          (*doffsets)[3 * u + k] = a[k] * g[0] + a[4 + k] * g[1] + a[8 + k] * g[2];
+      // q' = qb * q: column e of d q' / d qb is e_e * q.
+      const float* qc = c.quats.data() + 4 * u;
+      const float* dq = dqp.data() + 4 * u;
+      double dqb[4] = {0, 0, 0, 0};
+      if (dq[0] != 0.f || dq[1] != 0.f || dq[2] != 0.f || dq[3] != 0.f) {
+        const double q[4] = {qc[0], qc[1], qc[2], qc[3]};
+        for (int e = 0; e < 4; ++e) {
+          double basis[4] = {0, 0, 0, 0}, col[4];
+          basis[e] = 1;
+          quat_mul(basis, q, col);
+          for (int k = 0; k < 4; ++k) dqb[e] += col[k] * double(dq[k]);
+        }
+        const double m9[9] = {a[0], a[1], a[2], a[4], a[5], a[6], a[8], a[9], a[10]};
+        double dm9[9];
+        matrix_to_quat_backward(m9, dqb, dm9);
+        for (int e = 0; e < 9; ++e) dM(e / 3, e % 3) += dm9[e];
+      }
+      for (int q = 0; q < K; ++q) {
+        const float w = skin_weights[size_t(K) * u + size_t(q)];
+        if (w == 0.f) continue;
+        acc[size_t(skin_joints[size_t(K) * u + size_t(q)])] += double(w) * dM;
+      }
+    }
+  }
+  dA.assign(size_t(J), M34::Zero());
+  for (const auto& acc : sums)
+    for (size_t j = 0; j < acc.size(); ++j) dA[j] += acc[j];
 }
 
 Eigen::MatrixXd skin_points(const Eigen::MatrixXd& P, const Eigen::MatrixXd* offsets,

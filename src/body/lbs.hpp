@@ -104,6 +104,21 @@ void lbs_backward(const LbsCache& cache, const std::vector<float>& dmeans_posed,
                   const std::vector<float>& dquats_posed, std::vector<float>& dmeans_canonical,
                   std::vector<float>& dquats_canonical);
 
+// The backward to the skinning transforms (registration: the pose is learned, the Gaussians are
+// fixed): from dmeans (3N) and dquats (4N) of the posed Gaussians, per Gaussian
+//   dM_i[:, 0:3] = g_i (x_i + o_i)^T + d q(M)/dM^T (R(q_i)^T dq'_i),   dM_i[:, 3] = g_i
+// (q' = q(M) * q = R(q) q(M); core/rotation.hpp matrix_to_quat_backward), then
+// dtransforms_j = sum over Gaussians and slots with joint j of w_ik dM_i (J entries, the top
+// 3 x 4 rows, overwritten). doffsets (3N: d loss / d pose_offsets = M_i[:, 0:3]^T g_i) may be
+// nullptr. `canonical`, `pose_offsets` and the skin are lbs_forward's, `cache` its output.
+void lbs_transforms_backward(const Gaussians& canonical, const float* pose_offsets,
+                             const std::vector<int>& skin_joints,
+                             const std::vector<float>& skin_weights, int num_transforms,
+                             const LbsCache& cache, const std::vector<float>& dmeans_posed,
+                             const std::vector<float>& dquats_posed,
+                             std::vector<Eigen::Matrix<double, 3, 4>>& dtransforms,
+                             std::vector<float>* doffsets);
+
 // Skins points (N x 3 rows; offsets: rows added before skinning where present, may be nullptr or
 // have fewer rows) with k = joints.cols() weights per row (row-major N x k).
 using SkinJoints = Eigen::Matrix<int, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
