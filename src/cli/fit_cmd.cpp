@@ -12,6 +12,7 @@
 #include "fit/fit_file.hpp"
 #include "fit/keypoint_calibration.hpp"
 #include "fit/overlay.hpp"
+#include "fit/refine.hpp"
 #include "fit/run_fit.hpp"
 #include "io/image_io.hpp"
 #include "perceive/openpose.hpp"
@@ -25,6 +26,7 @@ ks::cli::CommandGroup group(24, [](CLI::App& app) {
     ks::FitStageOptions so;
     std::string subject;
     bool no_silhouette = false, quiet = false;
+    std::string refine_with;
     std::string keypoints = ks::to_string(so.fit.keypoints);
   };
   auto args = std::make_shared<Args>();
@@ -52,8 +54,25 @@ ks::cli::CommandGroup group(24, [](CLI::App& app) {
   sub->add_flag("--overlay", args->so.overlay,
                 "Also write SUBJECT/fit_overlay.png (the body on the photo, keypoints)");
   sub->add_flag("--no-silhouette", args->no_silhouette, "Fit to the keypoints only");
+  sub->add_option("--refine-with", args->refine_with,
+                  "Refine SUBJECT/fit.json through this avatar's render instead of fitting: the "
+                  "pose and global transform registered so that the render matches image.png "
+                  "and mask.png (docs/register.md); the keypoint fit is kept as "
+                  "SUBJECT/fit_keypoints.json")
+      ->check(CLI::ExistingFile);
   sub->add_flag("--quiet,-q", args->quiet, "No stage lines");
   sub->callback([args] {
+    if (!args->refine_with.empty()) {
+      const ks::RefineFitResult r = ks::refine_fit(args->subject, args->refine_with);
+      const ks::RegisterResult& g = r.registration;
+      std::printf(
+          "fit: registered through %s in %.1f s (%d steps): cost %.4f -> %.4f (mask %.4f -> "
+          "%.4f)%s; wrote %s (keypoint fit in %s)\n",
+          args->refine_with.c_str(), g.seconds, g.steps, g.cost_before, g.cost_after, g.mask_before,
+          g.mask_after, g.improved ? "" : ", no improvement: the pose is kept", r.fit_path.c_str(),
+          r.keypoint_fit_path.c_str());
+      return;
+    }
     ks::FitStageOptions so = args->so;
     so.fit.use_silhouette = !args->no_silhouette;
     so.fit.progress = !args->quiet;
