@@ -75,6 +75,11 @@ ks::cli::CommandGroup group(25, [](CLI::App& app) {
   sub->add_flag("--temporal-silhouette", a->o.temporal.silhouette,
                 "Pass 3 with the silhouette terms too: outlines closer to the masks, joints "
                 "further from the truth on the synth (docs/track.md), about 10x slower");
+  sub->add_option("--avatar", a->o.avatar,
+                  "Pass 4: register every frame's pose and global transform through this "
+                  "avatar's render (docs/register.md); track.json keeps the keypoint track's "
+                  "params beside")
+      ->check(CLI::ExistingFile);
   sub->add_flag("--quiet,-q", a->quiet, "No progress lines");
   sub->callback([a] {
     ks::TrackOptions o = a->o;

@@ -1,10 +1,13 @@
 #include "track/track.hpp"
 
+#include "avatar/avatar.hpp"
+
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
 
+#include "avatar/avatar.hpp"
 #include "core/error.hpp"
 #include "core/fileio.hpp"
 #include "core/math.hpp"
@@ -206,6 +209,33 @@ TrackResult fit_track(const BodyModel& model, const std::vector<TrackFrameInput>
                    "restarted, %.1f s\n",
                    r.temporal.cost_before, r.temporal.cost_after, r.temporal.swapped.size(),
                    r.temporal.restarted.size(), r.temporal.seconds);
+  }
+  // Pass 4 with an avatar: each frame registered through its render.
+  if (!o.avatar.empty()) {
+    const Avatar avatar = load_avatar(o.avatar);
+    if (avatar.num_joints() != int(model.parents.size()))
+      throw Error("track --avatar: " + o.avatar + " has " + std::to_string(avatar.num_joints()) +
+                  " joints, the body model " + std::to_string(model.parents.size()));
+    const float background[3] = {1.f, 1.f, 1.f};
+    for (size_t i = 0; i < r.frames.size(); ++i) {
+      TrackFrame& tf = r.frames[i];
+      const std::filesystem::path dir(kept[i].subject_dir);
+      const Image image = read_image((dir / "image.png").string(), 3);
+      const std::string mask_path = (dir / "mask.png").string();
+      const Image mask = std::filesystem::exists(mask_path) ? read_image(mask_path, 1) : Image();
+      tf.keypoint_params = tf.fit.params;
+      tf.registration = register_pose(avatar, tf.fit.params, tf.fit.camera, image, mask, background,
+                                      o.registration);
+      const BodyParams& q = tf.registration.params;
+      tf.fit.params.global_orient = q.global_orient;
+      tf.fit.params.body_pose = q.body_pose;
+      tf.fit.params.transl = q.transl;
+      tf.registered = true;
+      if (o.progress)
+        std::fprintf(stderr, "track: register: frame %zu/%zu (%s) cost %.4g -> %.4g, %.1f s\n",
+                     i + 1, r.frames.size(), tf.source.c_str(), tf.registration.cost_before,
+                     tf.registration.cost_after, tf.registration.seconds);
+    }
   }
   r.fit_seconds = seconds_since(t0);
   return r;

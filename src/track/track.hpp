@@ -8,6 +8,7 @@
 //      per-coefficient median of the frames' betas; pass 2: each frame again with that shape
 //      fixed (FitOptions::initial_betas, free_betas off in every stage); pass 3 on a sequence:
 //      all frames at once with the temporal terms (track/temporal.hpp);
+//   (pass 4 with an avatar: each frame registered through its render, register/register.hpp);
 //   4. TRACK/track.json and TRACK/motion.npz (track_file.hpp); TRACK/overlay.mp4.
 // The output folder appears atomically: on any error nothing is left.
 #include <Eigen/Core>
@@ -17,6 +18,7 @@
 #include "body/body_model.hpp"
 #include "fit/fit.hpp"
 #include "perceive/perceive.hpp"
+#include "register/register.hpp"
 #include "track/temporal.hpp"
 #include "track/track_input.hpp"
 
@@ -34,6 +36,11 @@ struct TrackOptions {
   // from pass 1's poses with the shared shape — on synth seeds 3 / 7 / 5 the same figures within
   // 0.4 mm and half the fitting time (docs/track.md).
   bool shared_pass = false;
+  // Pass 4 where given: each frame's pose and global transform registered through this avatar's
+  // render (register/register.hpp; the avatar's skeleton, the frame's camera), after the passes
+  // above; track.json keeps the keypoint track's params beside each frame's registered ones.
+  std::string avatar;
+  RegisterOptions registration;
   bool progress = true;  // a line per stage and frame on stderr
   // run_track: each frame's fit drawn on it (fit/overlay.hpp) as TRACK/frames/NNNN/fit_overlay.png
   // and TRACK/overlay.mp4 (the video only where ffmpeg is found).
@@ -59,6 +66,9 @@ struct TrackFrame {
   bool swapped = false;    // pass 3 exchanged the detector's left and right labels here
   bool restarted = false;  // pass 3 restarted this frame from its neighbours
   std::vector<std::string> keypoints_used;  // BODY_25 names of the keypoints present
+  bool registered = false;                  // pass 4 ran (TrackOptions::avatar)
+  RegisterResult registration;              // what it did; fit.params is its result
+  BodyParams keypoint_params;               // the pose before pass 4
 };
 
 struct TrackResult {

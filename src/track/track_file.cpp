@@ -42,6 +42,15 @@ nlohmann::json track_json(const TrackResult& t) {
     fj["keypoints_used"] = f.keypoints_used;
     fj["swapped"] = f.swapped;
     fj["restarted"] = f.restarted;
+    if (f.registered) {
+      const RegisterResult& g = f.registration;
+      BodyParams kp = f.keypoint_params;
+      kp.betas = t.betas;
+      fj["registration"] = {{"improved", g.improved},     {"cost_before", g.cost_before},
+                            {"cost_after", g.cost_after}, {"mask_before", g.mask_before},
+                            {"mask_after", g.mask_after}, {"steps", g.steps},
+                            {"seconds", g.seconds},       {"keypoint_params", kp.to_json()}};
+    }
     const auto cs = f.shared.costs.find("total");
     if (t.shared_pass)
       fj["shared"] = {{"params", f.shared.params.to_json()},

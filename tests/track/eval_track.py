@@ -3,7 +3,8 @@
 synth's truth.
 
 usage: eval_track.py KINESPLAT TRACK SYNTH_TRAIN_DIR
-Each frame's result (`params`: pass 3 on a sequence, else pass 2), its pass-2 fit with the shared
+Each frame's result (`params`: pass 3 on a sequence, else pass 2; with `--avatar` the registered
+pose, and the keypoint track's as `keypoint`), its pass-2 fit with the shared
 shape (`shared`) and its independent fit (pass 1) are written as fit.json files and compared with
 the synth frame's true pose and camera by `kinesplat evaluate-fit`; the kept frames' indices select
 the dataset frames. The acceleration error (mm / frame^2, over the kept frames' steps): per joint
@@ -29,6 +30,8 @@ def variants(f):
     out = {"result": (track["betas"], f["params"], f["camera"])}
     if "shared" in f:
         out["pass2"] = (track["betas"], f["shared"]["params"], f["shared"]["camera"])
+    if "registration" in f:  # pass 4: `params` is the registered pose, this the keypoint track's
+        out["keypoint"] = (track["betas"], f["registration"]["keypoint_params"], f["camera"])
     ind = f["independent"]
     out["pass1"] = (ind["betas"], ind["params"], ind["camera"])
     return out
@@ -70,7 +73,7 @@ def dist(a, b):
     return sum((x - y) ** 2 for x, y in zip(a, b)) ** 0.5
 
 
-names = [n for n in ["result", "pass2", "pass1"] if "mpjpe_" + n in rows[0]]
+names = [n for n in ["result", "keypoint", "pass2", "pass1"] if "mpjpe_" + n in rows[0]]
 truth_joints = [r.pop("_truth") for r in rows]
 true_b = ds["betas"]
 pass1_b = [f["independent"]["betas"] for f in track["frames"]]

@@ -8,7 +8,8 @@ orbits, so frame k's body seen from its camera is R_k W for one unknown world or
 track's body in its camera is C G_k (C the fit's fixed camera rotation, G_k the frame's
 global_orient). W is fitted to all frames at once (the rotation nearest the mean of R_k^T C G_k);
 per frame the angle between C G_k and R_k W (degrees), and its yaw part (about the body's up
-axis). Prints a JSON summary for `params` (pass 3 where it ran), `shared` (pass 2) and
+axis). Prints a JSON summary for `params` (pass 3 where it ran; with `--avatar` the registered
+pose, and the keypoint track's as `keypoint`), `shared` (pass 2) and
 `independent` (pass 1), and the focal found beside the true one."""
 import json, os, sys
 import numpy as np
@@ -36,7 +37,8 @@ def angle(R):
 def evaluate(key):
     E, T = [], []
     for f in track["frames"]:
-        p = f[key]["params"] if key != "params" else f["params"]
+        p = f["params"] if key == "params" else f["registration"]["keypoint_params"] \
+            if key == "registration" else f[key]["params"]
         E.append(C @ rodrigues(p["global_orient"]))
         T.append(np.array(cams[f["index"]]["matrix_4x4"])[:3, :3])
     M = sum(t.T @ e for t, e in zip(T, E))
@@ -54,7 +56,8 @@ def evaluate(key):
 
 out = {"frames": len(track["frames"]), "focal": track["focal"], "focal_from": track.get("focal_from"),
        "true_focal_scaled": cams[0]["fx"] * track["width"] / json.load(open(cameras))["image_size"][0]}
-for key, name in [("params", "result"), ("shared", "pass2"), ("independent", "pass1")]:
+for key, name in [("params", "result"), ("registration", "keypoint"), ("shared", "pass2"),
+                  ("independent", "pass1")]:
     if key == "params" or key in track["frames"][0]:
         out[name] = evaluate(key)
 print(json.dumps(out, indent=1))

@@ -10,6 +10,9 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
+#include "avatar/avatar.hpp"
+#include "avatar/from_body.hpp"
+#include "avatar/tiny_avatar.hpp"
 #include "body/body_model.hpp"
 #include "body/keypoints.hpp"
 #include "cli_run.hpp"
@@ -280,6 +283,37 @@ TEST(TrackFit, TemporalSilhouetteAndPhotoSets) {
   EXPECT_FALSE(pj["temporal"]["applied"].get<bool>());
   EXPECT_TRUE(pj["shared_pass"].get<bool>());  // a photo set always has pass 2
   EXPECT_TRUE(pj["frames"][0].contains("shared"));
+}
+
+// Pass 4 (--avatar): every frame registered through an avatar's render; track.json keeps the
+// keypoint track's pose beside; an avatar of another skeleton is refused.
+TEST(TrackFit, RegistersEveryFrameThroughAnAvatar) {
+  SynthTrack s(3, "walk", 3);
+  TrackOptions o = clean_walk_options(s);
+  const std::vector<double> b = s.dataset["betas"].get<std::vector<double>>();
+  const Avatar avatar = avatar_from_body(
+      default_body_model(), Eigen::Map<const Eigen::VectorXd>(b.data(), Eigen::Index(b.size())));
+  o.avatar = s.tmp / "body.ksavatar";
+  save_avatar(o.avatar, avatar);
+  o.registration.iterations = {10, 5};
+  const TrackResult r = track_subjects(s.frames, s.tmp / "reg", o, false);
+  const nlohmann::json j = read_json(s.tmp / "reg/track.json");
+  ASSERT_EQ(r.frames.size(), 3u);
+  for (size_t f = 0; f < r.frames.size(); ++f) {
+    const TrackFrame& tf = r.frames[f];
+    EXPECT_TRUE(tf.registered);
+    EXPECT_EQ(tf.registration.steps, 15);
+    EXPECT_LE(tf.registration.cost_after, tf.registration.cost_before);
+    EXPECT_EQ(tf.keypoint_params.body_pose, tf.shared.params.body_pose);
+    EXPECT_EQ(tf.fit.params.body_pose, tf.registration.params.body_pose);
+    const nlohmann::json& reg = j["frames"][f]["registration"];
+    EXPECT_EQ(reg["improved"].get<bool>(), tf.registration.improved);
+    EXPECT_TRUE(reg.contains("keypoint_params"));
+  }
+  o.avatar = s.tmp / "tiny.ksavatar";
+  save_avatar(o.avatar, test::tiny_avatar());
+  EXPECT_THROW(track_subjects(s.frames, s.tmp / "bad", o, false), Error);
+  EXPECT_FALSE(fs::exists(s.tmp / "bad"));
 }
 
 TEST(TrackFit, BadInputsGiveErrorsAndLeaveNothing) {
