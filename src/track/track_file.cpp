@@ -85,12 +85,17 @@ Motion track_motion(const TrackResult& t) {
   m.name = "track";
   m.fps = t.fps;
   const Eigen::Matrix3d R = fit::camera_rotation();
-  const Eigen::Vector3d t0 = t.frames.front().fit.camera.t;
+  // The body's own translation (zero from the keypoint fit, set by registration) moves it in the
+  // camera as the camera's translation R transl would: both go into the world translation.
+  const auto body_in_camera = [&](const TrackFrame& f) {
+    return Eigen::Vector3d(f.fit.camera.t + R * f.fit.params.transl);
+  };
+  const Eigen::Vector3d t0 = body_in_camera(t.frames.front());
   for (const TrackFrame& f : t.frames) {
     BodyParams b;
     b.global_orient = f.fit.params.global_orient;
     b.body_pose = f.fit.params.body_pose;
-    b.transl = R.transpose() * (f.fit.camera.t - t0);
+    b.transl = R.transpose() * (body_in_camera(f) - t0);
     m.frames.push_back(std::move(b));
   }
   return m;

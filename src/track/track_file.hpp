@@ -12,9 +12,10 @@ namespace ks {
 
 nlohmann::json track_json(const TrackResult& track);
 
-// The world motion of a fixed camera: frame f's body translation = camera_rotation()^T (t_f - t_0)
-// (the fit's camera is world-to-camera X_c = R X + t with the body at the origin); poses =
-// global_orient + body_pose; fps = track.fps.
+// The world motion of a fixed camera: frame f's body translation = camera_rotation()^T (b_f - b_0)
+// with b_f = t_f + R transl_f where the body sits in the camera (the fit's camera is
+// world-to-camera X_c = R X + t; transl is zero from the keypoint fit, set by registration); poses
+// = global_orient + body_pose; fps = track.fps.
 Motion track_motion(const TrackResult& track);
 
 }  // namespace ks

@@ -197,9 +197,12 @@ TEST(TrackMotion, KnownMotionRoundTripsThroughMotionNpz) {
     world.push_back(w);
     TrackFrame fr;
     fr.fit.params = w;
-    fr.fit.params.transl.setZero();
+    // The keypoint fit puts the body at the origin (transl zero, the move in the camera's
+    // translation); registration moves the body itself: odd frames split the move between both.
+    fr.fit.params.transl = (f % 2) ? Eigen::Vector3d(0.5 * w.transl) : Eigen::Vector3d::Zero();
     fr.fit.camera.R = R;
-    fr.fit.camera.t = R * w.transl + tc;  // X_c = R (X + T) + tc = R X + (R T + tc)
+    // X_c = R (X + T) + tc = R (X + transl) + (R (T - transl) + tc)
+    fr.fit.camera.t = R * (w.transl - fr.fit.params.transl) + tc;
     tr.frames.push_back(fr);
   }
   save_amass_npz(dir / "motion.npz", track_motion(tr));
@@ -216,7 +219,7 @@ TEST(TrackMotion, KnownMotionRoundTripsThroughMotionNpz) {
     BodyParams fitted = tr.frames[f].fit.params;
     const Eigen::MatrixXd c = body_forward(model, fitted).joints;
     const Eigen::MatrixXd d = body_forward(model, m.frames[f]).joints;
-    const Eigen::Vector3d t0 = tr.frames[0].fit.camera.t;
+    const Eigen::Vector3d t0 = tr.frames[0].fit.camera.t + R * tr.frames[0].fit.params.transl;
     for (int j = 0; j < c.rows(); ++j) {
       const Eigen::Vector3d seen_fit = R * c.row(j).transpose() + tr.frames[f].fit.camera.t;
       const Eigen::Vector3d seen_played = R * d.row(j).transpose() + t0;
