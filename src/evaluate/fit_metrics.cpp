@@ -1,5 +1,8 @@
 #include "evaluate/fit_metrics.hpp"
 
+#include <algorithm>
+#include <cmath>
+
 #include "evaluate/pose_metrics.hpp"
 #include "meshrender/meshrender.hpp"
 
@@ -34,6 +37,9 @@ nlohmann::json FitMetrics::to_json() const {
           {"mpjpe_mm", mpjpe_mm},
           {"pa_mpjpe_mm", pa_mpjpe_mm},
           {"silhouette_iou", silhouette_iou},
+          {"rest_vertex_error_mm", std::isnan(rest_vertex_error_mm)
+                                       ? nlohmann::json(nullptr)
+                                       : nlohmann::json(rest_vertex_error_mm)},
           {"pa_per_joint_mm", pa_per_joint_mm},
           {"estimate_joints_mm", estimate_joints_mm},
           {"truth_joints_mm", truth_joints_mm}};
@@ -69,6 +75,19 @@ FitMetrics evaluate_fit(const SubjectFit& est, const SubjectFit& truth) {
   }
   m.silhouette_iou =
       mask_iou(body_mask(*est.model, se, ce), body_mask(*truth.model, st, truth.camera));
+  m.rest_vertex_error_mm = NAN;
+  if (est.model->faces.rows() == truth.model->faces.rows() &&
+      est.model->v_template.rows() == truth.model->v_template.rows()) {
+    BodyParams re, rt;
+    re.betas = est.params.betas;
+    rt.betas = truth.params.betas;
+    const BodyState be = body_forward(*est.model, re), bt = body_forward(*truth.model, rt);
+    const Eigen::RowVector3d d = be.joints.row(0) - bt.joints.row(0);
+    double sum = 0;
+    for (long v = 0; v < be.vertices.rows(); ++v)
+      sum += (be.vertices.row(v) - d - bt.vertices.row(v)).norm();
+    m.rest_vertex_error_mm = 1000.0 * sum / double(std::max<long>(1, be.vertices.rows()));
+  }
   return m;
 }
 

@@ -17,6 +17,9 @@ struct FitMetrics {
   double pa_mpjpe_mm = 0;
   double silhouette_iou = 0;
   std::vector<double> pa_per_joint_mm;  // each joint after the Procrustes alignment
+  // The shape's error: the two rest-pose bodies (betas only), pelvis on pelvis, mean vertex
+  // distance (mm); NaN (JSON null) when the two body models' meshes differ.
+  double rest_vertex_error_mm = 0;
   // The joints in each one's camera frame, the pelvis at the origin (what MPJPE compares), mm:
   // a sequence's acceleration error is computed from them.
   std::vector<std::array<double, 3>> estimate_joints_mm, truth_joints_mm;

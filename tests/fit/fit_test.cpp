@@ -309,6 +309,10 @@ TEST(Fit, StandingSynthPersonFromTrueKeypointsAndMask) {
   const FitMetrics m = evaluate_fit(load_fit(s.tmp / "fit.json"), load_fit(s.truth));
   EXPECT_LT(m.pa_mpjpe_mm, 25.0);
   EXPECT_GT(m.silhouette_iou, 0.88);
+  // The shape's error: zero against itself, some millimetres from a fit.
+  EXPECT_GT(m.rest_vertex_error_mm, 0.0);
+  EXPECT_LT(m.rest_vertex_error_mm, 60.0);
+  EXPECT_NEAR(evaluate_fit(load_fit(s.truth), load_fit(s.truth)).rest_vertex_error_mm, 0.0, 1e-9);
   EXPECT_TRUE(r.facing_camera);
   for (const char* term : {"keypoints", "silhouette_inside", "silhouette_cover", "pose_prior"})
     EXPECT_TRUE(r.costs.count(term)) << term;

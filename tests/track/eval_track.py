@@ -51,6 +51,7 @@ for f in track["frames"]:
         row["mpjpe_" + name] = m["mpjpe_mm"]
         row["pa_" + name] = m["pa_mpjpe_mm"]
         row["iou_" + name] = m["silhouette_iou"]
+        row["shape_" + name] = m["rest_vertex_error_mm"]
         joints.setdefault(name, []).append(m["estimate_joints_mm"])
         per_joint.setdefault(name, []).append(m["pa_per_joint_mm"])
         row.setdefault("_truth", m["truth_joints_mm"])
@@ -83,6 +84,9 @@ summary = {
     "median": {k + "_" + n: round(statistics.median(r[k + "_" + n] for r in rows), 1)
                for n in names for k in ["mpjpe", "pa"]},
     "median_iou": {n: round(statistics.median(r["iou_" + n] for r in rows), 3) for n in names},
+    # the shape's error: rest-pose bodies, pelvis on pelvis, mean vertex distance (mm)
+    "median_rest_vertex_error_mm": {n: round(statistics.median(r["shape_" + n] for r in rows), 1)
+                                    for n in names},
     "max": {k + "_" + n: round(max(r[k + "_" + n] for r in rows), 1) for n in names for k in ["mpjpe", "pa"]},
     "pa_per_joint_median_mm": {n: {JOINTS[j] if j < len(JOINTS) else str(j):
                                    round(statistics.median(f[j] for f in per_joint[n]), 1)
